@@ -1,0 +1,13 @@
+"""BSP Lab: build, trace and compare kd and BSP ray-tracing acceleration
+structures. See docs/api.md for the API."""
+
+from . import _core
+from ._core import Cancelled, Progress
+from .camera import Camera
+from .method_table import methods
+from .render import RENDER_MODES, render
+from .tree import Tree, build
+
+__version__ = "0.1.0"
+__all__ = ["Camera", "Cancelled", "Progress", "RENDER_MODES", "Tree", "build", "methods",
+           "render", "_core"]

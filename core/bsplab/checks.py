@@ -1,0 +1,117 @@
+"""Input checks with messages that name the problem. They run before any
+array reaches the compiled core, which trusts its inputs."""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+MAX_TRIANGLES = (1 << 30) - 1  # triangle ids share 32 bits with a 2-bit tag in the builder
+
+
+def float_array(value, name: str, shape_tail: tuple[int, ...]) -> np.ndarray:
+    """A C-contiguous float32 array of shape (N, *shape_tail), all finite."""
+    arr = np.asarray(value)
+    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.floating)
+                                   or np.issubdtype(arr.dtype, np.integer)):
+        raise TypeError(f"{name} must be a float array, got dtype {arr.dtype}")
+    if arr.ndim != 1 + len(shape_tail) or tuple(arr.shape[1:]) != shape_tail:
+        want = "(N, " + ", ".join(map(str, shape_tail)) + ")"
+        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
+    arr = np.ascontiguousarray(arr, dtype=np.float32)
+    finite = np.isfinite(arr)
+    if not finite.all():
+        bad = np.flatnonzero(~finite.reshape(len(arr), -1).all(axis=1))
+        raise ValueError(f"{name} has {len(bad)} entries with NaN or infinite coordinates "
+                         f"(first at index {bad[0]})")
+    return arr
+
+
+def triangles(value) -> np.ndarray:
+    """(N, 3, 3) float32 triangles from an array or a (vertices, indices) pair."""
+    if isinstance(value, tuple):
+        if len(value) != 2:
+            raise ValueError("a mesh tuple must be (vertices, indices)")
+        verts = float_array(value[0], "vertices", (3,))
+        idx = np.asarray(value[1])
+        if not np.issubdtype(idx.dtype, np.integer):
+            raise TypeError(f"indices must be an integer array, got dtype {idx.dtype}")
+        if idx.ndim != 2 or idx.shape[1] != 3:
+            raise ValueError(f"indices must have shape (N, 3), got {idx.shape}")
+        if idx.size and (idx.min() < 0 or idx.max() >= len(verts)):
+            raise ValueError(f"indices out of range for {len(verts)} vertices")
+        tris = verts[idx]
+    else:
+        tris = float_array(value, "triangles", (3, 3))
+    if len(tris) == 0:
+        raise ValueError("there are no triangles to build a tree over")
+    if len(tris) > MAX_TRIANGLES:
+        raise ValueError(f"{len(tris)} triangles is more than the {MAX_TRIANGLES} supported")
+    return np.ascontiguousarray(tris, dtype=np.float32)
+
+
+def number(value, name: str, *, low=None, high=None, low_open=False, integer=False):
+    """A real (or integer) option inside [low, high] (or (low, high])."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+    if integer and not float(value).is_integer():
+        raise ValueError(f"{name} must be a whole number, got {value}")
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value}")
+    if low is not None and (value < low or (low_open and value == low)):
+        raise ValueError(f"{name} must be {'>' if low_open else '>='} {low}, got {value}")
+    if high is not None and value > high:
+        raise ValueError(f"{name} must be <= {high}, got {value}")
+    return int(value) if integer else float(value)
+
+
+def build_options(options: dict, allowed: tuple[str, ...], defaults: dict) -> dict:
+    unknown = sorted(set(options) - set(allowed))
+    if unknown:
+        raise TypeError(f"unknown build option(s) {', '.join(unknown)}; "
+                        f"options are {', '.join(allowed)}")
+    o = {**{k: defaults[k] for k in allowed}, **options}
+    return {
+        "traversal_cost": number(o["traversal_cost"], "traversal_cost", low=0, low_open=True,
+                                 high=1e6),
+        "intersect_cost": number(o["intersect_cost"], "intersect_cost", low=0, low_open=True,
+                                 high=1e6),
+        "empty_bonus": number(o["empty_bonus"], "empty_bonus", low=0, high=0.99),
+        "max_depth": number(o["max_depth"], "max_depth", low=0, high=64, integer=True),
+        "leaf_size": number(o["leaf_size"], "leaf_size", low=1, high=1 << 20, integer=True),
+        "max_duplication": number(o["max_duplication"], "max_duplication", low=1, high=1000),
+        "memory_limit_mb": number(o["memory_limit_mb"], "memory_limit_mb", low=0, low_open=True),
+        "threads": threads(o["threads"]),
+    }
+
+
+def threads(value) -> int:
+    return number(value, "threads", low=0, high=1024, integer=True)
+
+
+def rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
+    o = float_array(origins, "origins", (3,))
+    d = float_array(directions, "directions", (3,))
+    if len(o) != len(d):
+        raise ValueError(f"origins ({len(o)}) and directions ({len(d)}) differ in length")
+    zero = ~(d != 0).any(axis=1)
+    if zero.any():
+        raise ValueError(f"{int(zero.sum())} directions have zero length "
+                         f"(first at index {int(np.flatnonzero(zero)[0])})")
+    return o, d
+
+
+def ray_range(value, name: str, n: int) -> np.ndarray:
+    """tmin/tmax as a length-1 (broadcast) or length-n float32 array."""
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim != 1 or len(arr) not in (1, n):
+        raise ValueError(f"{name} must be a scalar or have shape ({n},), got {arr.shape}")
+    if np.isnan(arr).any():
+        raise ValueError(f"{name} contains NaN")
+    if (arr < 0).any():
+        raise ValueError(f"{name} must be >= 0")
+    return np.ascontiguousarray(arr, dtype=np.float32)

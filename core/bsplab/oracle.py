@@ -1,0 +1,123 @@
+"""Embree (through `embreex`) as the reference for closest hits, and the
+agreement measure used by tests, the benchmark and the add-on."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+def available() -> bool:
+    try:
+        import embreex  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class EmbreeTracer:
+    """Closest-hit queries on Embree, returning the layout of Tree.intersect."""
+
+    def __init__(self, triangles: np.ndarray):
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        tris = np.ascontiguousarray(triangles, dtype=np.float32)
+        start = time.perf_counter()
+        self.scene = rtcore_scene.EmbreeScene()
+        vertices = tris.reshape(-1, 3)
+        faces = np.arange(len(vertices), dtype=np.int32).reshape(-1, 3)
+        self._mesh = TriangleMesh(self.scene, vertices, faces)
+        self.build_seconds = time.perf_counter() - start
+        self.last_seconds = 0.0
+
+    def intersect(self, origins, directions, tmax=None) -> dict:
+        o = np.ascontiguousarray(origins, dtype=np.float32)
+        d = np.ascontiguousarray(directions, dtype=np.float32)
+        kwargs = {}
+        if tmax is not None:
+            kwargs["dists"] = np.ascontiguousarray(
+                np.broadcast_to(np.asarray(tmax, np.float32), (len(o),)))
+        start = time.perf_counter()
+        r = self.scene.run(o, d, output=1, **kwargs)
+        self.last_seconds = time.perf_counter() - start
+        prim = np.asarray(r["primID"], dtype=np.int32)
+        hit = prim >= 0
+        t = np.where(hit, np.asarray(r["tfar"], np.float32), np.float32(np.inf))
+        return {"t": t, "prim": prim,
+                "u": np.where(hit, r["u"], 0).astype(np.float32),
+                "v": np.where(hit, r["v"], 0).astype(np.float32)}
+
+
+def edge_distance(triangles: np.ndarray, prim: np.ndarray, origins: np.ndarray,
+                  directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance (double precision) from each ray's crossing of the plane
+    of triangle prim[i] to that triangle's boundary (negative: outside), and
+    the magnitude of the coordinates involved. NaN where prim < 0."""
+    dist = np.full(len(prim), np.nan)
+    scale = np.full(len(prim), np.nan)
+    ok = prim >= 0
+    tri = triangles[prim[ok]].astype(np.float64)
+    o = origins[ok].astype(np.float64)
+    d = directions[ok].astype(np.float64)
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    det = np.where(det == 0, np.finfo(np.float64).tiny, det)
+    s = o - tri[:, 0]
+    u = np.einsum("ij,ij->i", s, p) / det
+    v = np.einsum("ij,ij->i", d, np.cross(s, e1)) / det
+    bary = np.stack([1 - u - v, u, v], axis=1)
+    # The barycentric coordinate of vertex i times the height over the
+    # opposite edge is the distance to that edge.
+    twice_area = np.linalg.norm(np.cross(e1, e2), axis=1)
+    opposite = np.stack([np.linalg.norm(tri[:, 2] - tri[:, 1], axis=1),
+                         np.linalg.norm(e2, axis=1), np.linalg.norm(e1, axis=1)], axis=1)
+    heights = twice_area[:, None] / np.maximum(opposite, 1e-300)
+    dist[ok] = (bary * heights).min(axis=1)
+    scale[ok] = np.maximum(np.abs(tri).max(axis=(1, 2)), np.abs(o).max(axis=1))
+    return dist, scale
+
+
+def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, origins=None,
+            directions=None, edge_ulps: float = 8.0) -> dict:
+    """How far two hit sets agree. A ray agrees when both miss, or both hit
+    the same primitive, or both hit at the same distance within rel_tol
+    (two primitives tie at a shared edge or coincide).
+
+    Given the triangles and rays, a disagreement is further classed as
+    `grazing` when the ray passes within edge_ulps single-precision ulps (of
+    the coordinates' magnitude; computed in double precision) of the boundary
+    of a triangle that one side hit: at an edge, single-precision tests on
+    float32 input may rightly decide either way."""
+    pa, pb = ours["prim"], ref["prim"]
+    ta, tb = ours["t"].astype(np.float64), ref["t"].astype(np.float64)
+    both_miss = (pa < 0) & (pb < 0)
+    both_hit = (pa >= 0) & (pb >= 0)
+    same_prim = both_hit & (pa == pb)
+    with np.errstate(invalid="ignore"):
+        close_t = both_hit & (np.abs(ta - tb) <= rel_tol * np.maximum(np.abs(tb), 1e-30))
+    agree = both_miss | same_prim | close_t
+    bad = np.flatnonzero(~agree)
+    grazing = np.zeros(len(bad), bool)
+    if len(bad) and triangles is not None:
+        o, d = origins[bad], directions[bad]
+        for prims in (pa[bad], pb[bad]):
+            dist, scale = edge_distance(triangles, prims, o, d)
+            with np.errstate(invalid="ignore"):
+                grazing |= np.abs(dist) <= edge_ulps * np.finfo(np.float32).eps * scale
+    n = len(pa)
+    return {
+        "rays": n,
+        "agree": int(agree.sum()),
+        "agreement": float(agree.mean()) if n else 1.0,
+        "same_prim": int(same_prim.sum()),
+        "ties": int((close_t & ~same_prim).sum()),
+        "hit_only_ours": int(((pa >= 0) & (pb < 0)).sum()),
+        "hit_only_ref": int(((pa < 0) & (pb >= 0)).sum()),
+        "different": int((both_hit & ~same_prim & ~close_t).sum()),
+        "grazing": int(grazing.sum()),
+        "disagreeing": bad,
+        "unexplained": bad[~grazing] if triangles is not None else bad,
+    }

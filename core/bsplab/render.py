@@ -1,0 +1,107 @@
+"""Preview rendering: camera rays through the tree, then per-pixel shading.
+
+Tracing runs in the core (threads, GIL released, progress, cancel); the
+shading of the hit buffers is cheap array work and stays in numpy."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .camera import Camera
+from .tree import Tree
+
+RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests")
+MAX_SIZE = 16384
+BACKGROUND = np.array([0.05, 0.05, 0.06], np.float32)
+
+# A perceptual dark-blue -> cyan -> yellow -> red ramp for cost heatmaps.
+_RAMP = np.array([[0.05, 0.03, 0.25], [0.10, 0.35, 0.85], [0.10, 0.80, 0.80],
+                  [0.55, 0.90, 0.25], [0.98, 0.85, 0.15], [0.90, 0.15, 0.10]], np.float32)
+
+
+def heat_ramp(x: np.ndarray) -> np.ndarray:
+    """Colours for values in [0, 1]."""
+    x = np.clip(x, 0.0, 1.0) * (len(_RAMP) - 1)
+    i = np.minimum(x.astype(np.int64), len(_RAMP) - 2)
+    f = (x - i)[..., None].astype(np.float32)
+    return _RAMP[i] * (1 - f) + _RAMP[i + 1] * f
+
+
+def geometric_normals(triangles: np.ndarray, prim: np.ndarray) -> np.ndarray:
+    """Unit normals of the hit triangles (zeros where prim < 0)."""
+    n = np.zeros((len(prim), 3), np.float32)
+    hit = prim >= 0
+    tri = triangles[prim[hit]]
+    g = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n[hit] = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-30)
+    return n
+
+
+def shade(mode: str, hits: dict, directions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(M, 3) colours of rays for one of RENDER_MODES."""
+    prim = hits["prim"]
+    hit = prim >= 0
+    rgb = np.broadcast_to(BACKGROUND, (len(prim), 3)).copy()
+    if mode in ("heat_steps", "heat_tests"):
+        cost = hits["steps" if mode == "heat_steps" else "tests"].astype(np.float32)
+        top = max(float(cost.max(initial=0)), 1.0)
+        return heat_ramp(cost / top)
+    if not hit.any():
+        return rgb
+    if mode == "depth":
+        t = hits["t"][hit]
+        lo, hi = float(t.min()), float(t.max())
+        rgb[hit] = (1.0 - (t - lo) / max(hi - lo, 1e-30))[:, None] * 0.9 + 0.1
+        return rgb
+    n = geometric_normals(triangles, prim)
+    if mode == "normal":
+        rgb[hit] = n[hit] * 0.5 + 0.5
+        return rgb
+    # Headlight: the light sits at the eye, so facing surfaces are bright.
+    cos = np.abs(np.einsum("ij,ij->i", n[hit], directions[hit]))
+    rgb[hit] = (0.15 + 0.8 * cos)[:, None] * np.array([0.92, 0.90, 0.85], np.float32)
+    return rgb
+
+
+def check_size(width, height) -> tuple[int, int]:
+    for name, v in (("width", width), ("height", height)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise TypeError(f"{name} must be an integer, got {type(v).__name__}")
+        if not 0 < v <= MAX_SIZE:
+            raise ValueError(f"{name} must be in 1..{MAX_SIZE}, got {v}")
+    return int(width), int(height)
+
+
+def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "shaded", *,
+           threads: int = 0, progress=None) -> tuple[np.ndarray, dict]:
+    """Renders an (H, W, 4) float32 RGBA image (row 0 = top) and its statistics."""
+    if not isinstance(tree, Tree):
+        raise TypeError(f"tree must be a bsplab.Tree, got {type(tree).__name__}")
+    if not isinstance(camera, Camera):
+        raise TypeError(f"camera must be a bsplab.Camera, got {type(camera).__name__}")
+    width, height = check_size(width, height)
+    if mode not in RENDER_MODES:
+        raise ValueError(f"unknown render mode {mode!r}; modes: {', '.join(RENDER_MODES)}")
+    origins, directions = camera.rays(width, height)
+    start = time.perf_counter()
+    hits = tree.intersect(origins, directions, threads=threads, progress=progress)
+    seconds = time.perf_counter() - start
+    image = np.ones((height * width, 4), np.float32)
+    image[:, :3] = shade(mode, hits, directions, tree.triangles)
+    n = width * height
+    stats = {
+        "seconds": seconds,
+        "rays": n,
+        "rays_per_second": n / seconds if seconds > 0 else float("inf"),
+        "mean_steps": float(hits["steps"].mean()),
+        "mean_tests": float(hits["tests"].mean()),
+        "max_steps": int(hits["steps"].max()),
+        "max_tests": int(hits["tests"].max()),
+        "hits": int((hits["prim"] >= 0).sum()),
+        "width": width,
+        "height": height,
+        "mode": mode,
+    }
+    return image.reshape(height, width, 4), stats

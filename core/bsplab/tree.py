@@ -1,0 +1,71 @@
+"""Building trees and tracing rays: the checked Python face of the core."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _core, checks
+from . import method_table as _methods
+
+
+class Tree:
+    """An acceleration structure over a fixed set of triangles."""
+
+    def __init__(self, core_tree, method: str, options: dict):
+        self._tree = core_tree
+        self.method = method
+        self.options = dict(options)
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """The (N, 3, 3) float32 triangles, in input order (read-only view)."""
+        return self._tree.triangles
+
+    @property
+    def bounds(self) -> tuple:
+        return self._tree.bounds
+
+    @property
+    def stats(self) -> dict:
+        s = self._tree.stats()
+        s["method"] = self.method
+        s.update({f"option_{k}": v for k, v in self.options.items()})
+        return s
+
+    def node_bytes(self) -> bytes:
+        """The raw node array; equal bytes mean an identical tree."""
+        return self._tree.node_bytes()
+
+    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0,
+                  progress=None) -> dict:
+        """Closest hits of the rays; see docs/api.md for the returned arrays."""
+        o, d = checks.rays(origins, directions)
+        n = len(o)
+        lo = checks.ray_range(tmin, "tmin", n)
+        hi = checks.ray_range(tmax, "tmax", n)
+        out = {
+            "t": np.empty(n, np.float32),
+            "prim": np.empty(n, np.int32),
+            "u": np.empty(n, np.float32),
+            "v": np.empty(n, np.float32),
+            "steps": np.empty(n, np.uint32),
+            "tests": np.empty(n, np.uint32),
+        }
+        _core.intersect(self._tree, o, d, lo, hi, out["t"], out["prim"], out["u"], out["v"],
+                        out["steps"], out["tests"], checks.threads(threads), progress)
+        return out
+
+    def __repr__(self) -> str:
+        s = self._tree.stats()
+        return (f"<bsplab.Tree {self.method}: {s['triangles']} triangles, {s['nodes']} nodes, "
+                f"{s['bytes'] / 2**20:.1f} MiB>")
+
+
+def build(triangles, method: str = "kd", *, progress=None, **options) -> Tree:
+    """Builds a tree of `method` over (N, 3, 3) triangles or (vertices, indices)."""
+    m = _methods.get(method)
+    tris = checks.triangles(triangles)
+    opts = checks.build_options(options, m.params, _methods.COMMON_OPTIONS)
+    builder = getattr(_core, m.builder)
+    core_tree = builder(tris, progress=progress, **opts)
+    return Tree(core_tree, method, opts)

@@ -1,0 +1,73 @@
+#include "clip.hpp"
+
+#include <cmath>
+
+namespace bsp {
+namespace {
+
+// A polygon vertex with a per-axis bound on the rounding error of its
+// coordinates (zero for the triangle's own vertices).
+struct ClipVertex {
+    Vec3 p, err;
+};
+
+constexpr int kMaxVerts = 9;  // a triangle clipped by six planes
+constexpr float kRelErr = 1.0f / (1 << 21);
+
+ClipVertex interpolate(const ClipVertex& a, const ClipVertex& b, int axis, float plane) {
+    float t = (plane - a.p[axis]) / (b.p[axis] - a.p[axis]);
+    ClipVertex r;
+    for (int i = 0; i < 3; ++i) {
+        if (i == axis) {
+            r.p[i] = plane;  // on the plane by construction
+            r.err[i] = 0.0f;
+        } else if (a.p[i] == b.p[i]) {
+            r.p[i] = a.p[i];  // no interpolation, so no rounding
+            r.err[i] = std::max(a.err[i], b.err[i]);
+        } else {
+            r.p[i] = a.p[i] + (b.p[i] - a.p[i]) * t;
+            r.err[i] = std::max(a.err[i], b.err[i]) +
+                       (std::fabs(a.p[i]) + std::fabs(b.p[i])) * kRelErr;
+        }
+    }
+    return r;
+}
+
+// Keeps the part of the polygon with sign * (p[axis] - plane) >= 0.
+int clip_plane(const ClipVertex* in, int n, ClipVertex* out, int axis, float plane, float sign) {
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        const ClipVertex& a = in[i];
+        const ClipVertex& b = in[(i + 1) % n];
+        float da = sign * (a.p[axis] - plane), db = sign * (b.p[axis] - plane);
+        if (da >= 0.0f) out[m++] = a;
+        if ((da < 0.0f && db > 0.0f) || (da > 0.0f && db < 0.0f))
+            out[m++] = interpolate(a, b, axis, plane);
+    }
+    return m;
+}
+
+}  // namespace
+
+Box clipped_bounds(const Triangle& tri, const Box& box) {
+    ClipVertex buf[2][kMaxVerts + 3];
+    int n = 3;
+    for (int i = 0; i < 3; ++i) buf[0][i] = {tri.v[i], Vec3(0, 0, 0)};
+    int cur = 0;
+    for (int axis = 0; axis < 3 && n > 0; ++axis) {
+        n = clip_plane(buf[cur], n, buf[1 - cur], axis, box.lo[axis], 1.0f);
+        cur = 1 - cur;
+        if (n == 0) break;
+        n = clip_plane(buf[cur], n, buf[1 - cur], axis, box.hi[axis], -1.0f);
+        cur = 1 - cur;
+    }
+    Box b;
+    for (int i = 0; i < n; ++i) {
+        const ClipVertex& v = buf[cur][i];
+        b.extend(v.p - v.err);
+        b.extend(v.p + v.err);
+    }
+    return b.intersect(box);
+}
+
+}  // namespace bsp

@@ -1,0 +1,384 @@
+// The kd builder of Wald & Havran (2006): the 2N extents of the triangles
+// along each axis are sorted once at the root; each node sweeps its sorted
+// events to find the cheapest SAH plane, then splits its event lists into the
+// children's lists without re-sorting. Only triangles that straddle the plane
+// get new events: they are clipped to each child box ("perfect splits"), and
+// those few new events are sorted and merged in.
+#include "kd_build.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <future>
+#include <memory>
+#include <new>
+
+#include "clip.hpp"
+#include "parallel.hpp"
+
+namespace bsp {
+namespace {
+
+enum EventType : uint32_t { kEnd = 0, kPlanar = 1, kStart = 2 };
+
+// 8 bytes: position plus (triangle << 2 | type). Ends sort before planar
+// before starts at equal positions, which the sweep relies on.
+struct Event {
+    float pos;
+    uint32_t key;
+    uint32_t tri() const { return key >> 2; }
+    uint32_t type() const { return key & 3u; }
+    bool operator<(const Event& o) const {
+        return pos < o.pos || (pos == o.pos && (key & 3u) < (o.key & 3u));
+    }
+};
+
+using EventList = std::vector<Event>;
+
+struct NodeEvents {
+    EventList axis[3];
+    uint32_t count = 0;  // triangles in the node
+};
+
+void add_events(const Box& b, uint32_t tri, EventList* out) {
+    for (int k = 0; k < 3; ++k) {
+        if (b.lo[k] == b.hi[k]) {
+            out[k].push_back({b.lo[k], tri << 2 | kPlanar});
+        } else {
+            out[k].push_back({b.lo[k], tri << 2 | kStart});
+            out[k].push_back({b.hi[k], tri << 2 | kEnd});
+        }
+    }
+}
+
+struct Split {
+    int axis = -1;
+    float pos = 0;
+    bool planar_left = false;
+    float cost = kInf;
+    uint32_t n_left = 0, n_right = 0;
+};
+
+// Intermediate pointer tree; flattened into the 8-byte node array at the end.
+struct BuildNode {
+    int axis = -1;  // -1: leaf
+    float split = 0;
+    std::unique_ptr<BuildNode> child[2];
+    std::vector<uint32_t> refs;
+};
+
+enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2 };
+
+class KdBuilder {
+public:
+    KdBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
+              int threads)
+        : tris_(tris), opt_(opt), progress_(progress) {
+        spawn_depth_ = 0;
+        while ((1 << spawn_depth_) < threads) ++spawn_depth_;
+        if (threads > 1) spawn_depth_ += 2;  // a few more tasks than cores, for balance
+    }
+
+    std::unique_ptr<BuildNode> build(NodeEvents ev, const Box& box, int depth, double budget) {
+        std::vector<uint8_t> side(tris_.size());
+        return build_node(std::move(ev), box, depth, budget, side);
+    }
+
+private:
+    const std::vector<Triangle>& tris_;
+    const BuildOptions& opt_;
+    Progress* progress_;
+    int spawn_depth_;
+
+    Split find_split(const NodeEvents& ev, const Box& box) const {
+        Split best;
+        const Vec3 d = box.hi - box.lo;
+        const float parent_area = box.area();
+        if (!(parent_area > 0.0f)) return best;
+        const float inv_area = 1.0f / parent_area;
+        const float ki = opt_.intersect_cost, kt = opt_.traversal_cost;
+        for (int k = 0; k < 3; ++k) {
+            if (!(d[k] > 0.0f)) continue;
+            const int a = (k + 1) % 3, b = (k + 2) % 3;
+            const float cap = d[a] * d[b], rim = d[a] + d[b];
+            const EventList& e = ev.axis[k];
+            uint32_t nl = 0, nr = ev.count;
+            for (size_t i = 0; i < e.size();) {
+                const float p = e[i].pos;
+                uint32_t ends = 0, planars = 0, starts = 0;
+                while (i < e.size() && e[i].pos == p && e[i].type() == kEnd) ++ends, ++i;
+                while (i < e.size() && e[i].pos == p && e[i].type() == kPlanar) ++planars, ++i;
+                while (i < e.size() && e[i].pos == p && e[i].type() == kStart) ++starts, ++i;
+                nr -= planars + ends;
+                if (p > box.lo[k] && p < box.hi[k]) {
+                    const float pl = 2.0f * (cap + (p - box.lo[k]) * rim) * inv_area;
+                    const float pr = 2.0f * (cap + (box.hi[k] - p) * rim) * inv_area;
+                    for (int planar_left = 0; planar_left < 2; ++planar_left) {
+                        uint32_t l = nl + (planar_left ? planars : 0);
+                        uint32_t r = nr + (planar_left ? 0 : planars);
+                        float cost = kt + ki * (pl * float(l) + pr * float(r));
+                        if (l == 0 || r == 0) cost *= 1.0f - opt_.empty_bonus;
+                        if (cost < best.cost) {
+                            best = {k, p, bool(planar_left), cost, l, r};
+                        }
+                    }
+                }
+                nl += starts + planars;
+            }
+        }
+        return best;
+    }
+
+    // Marks every triangle of the node with the side(s) of `s` it lies on.
+    void classify(const NodeEvents& ev, const Split& s, std::vector<uint8_t>& side) const {
+        for (const Event& e : ev.axis[0])
+            if (e.type() != kEnd) side[e.tri()] = kBoth;
+        for (const Event& e : ev.axis[s.axis]) {
+            const uint32_t t = e.tri();
+            if (e.type() == kEnd && e.pos <= s.pos) {
+                side[t] = kLeftOnly;
+            } else if (e.type() == kStart && e.pos >= s.pos) {
+                side[t] = kRightOnly;
+            } else if (e.type() == kPlanar) {
+                bool left = e.pos < s.pos || (e.pos == s.pos && s.planar_left);
+                side[t] = left ? kLeftOnly : kRightOnly;
+            }
+        }
+    }
+
+    // Splits the node's sorted events into the children's sorted events.
+    void split_events(NodeEvents& ev, const Split& s, const Box& lbox, const Box& rbox,
+                      const std::vector<uint8_t>& side, NodeEvents& left, NodeEvents& right) const {
+        std::vector<uint32_t> straddling;
+        for (const Event& e : ev.axis[s.axis])
+            if (e.type() == kStart && side[e.tri()] == kBoth) straddling.push_back(e.tri());
+
+        EventList new_left[3], new_right[3];
+        for (uint32_t t : straddling) {
+            Box lb = clipped_bounds(tris_[t], lbox);
+            Box rb = clipped_bounds(tris_[t], rbox);
+            // The plane cuts the triangle inside the cell, so both halves are
+            // non-empty; rounding can still empty one, and then the whole
+            // triangle box (conservative) stands in.
+            if (lb.empty()) lb = tris_[t].bounds().intersect(lbox);
+            if (rb.empty()) rb = tris_[t].bounds().intersect(rbox);
+            add_events(lb, t, new_left);
+            add_events(rb, t, new_right);
+        }
+        left.count = s.n_left;
+        right.count = s.n_right;
+        for (int k = 0; k < 3; ++k) {
+            EventList only_left, only_right;
+            only_left.reserve(ev.axis[k].size());
+            only_right.reserve(ev.axis[k].size());
+            for (const Event& e : ev.axis[k]) {
+                uint8_t sd = side[e.tri()];
+                if (sd == kLeftOnly) only_left.push_back(e);
+                else if (sd == kRightOnly) only_right.push_back(e);
+            }
+            EventList().swap(ev.axis[k]);  // free the parent's list early
+            merge_into(only_left, new_left[k], left.axis[k]);
+            merge_into(only_right, new_right[k], right.axis[k]);
+        }
+    }
+
+    static void merge_into(EventList& sorted, EventList& extra, EventList& out) {
+        std::sort(extra.begin(), extra.end());
+        if (extra.empty()) {
+            out = std::move(sorted);
+            return;
+        }
+        out.resize(sorted.size() + extra.size());
+        std::merge(sorted.begin(), sorted.end(), extra.begin(), extra.end(), out.begin());
+    }
+
+    std::unique_ptr<BuildNode> make_leaf(const NodeEvents& ev, int depth) const {
+        auto node = std::make_unique<BuildNode>();
+        node->refs.reserve(ev.count);
+        for (const Event& e : ev.axis[0])
+            if (e.type() != kEnd) node->refs.push_back(e.tri());
+        std::sort(node->refs.begin(), node->refs.end());
+        if (progress_ && depth < 52) progress_->add(Progress::kScale >> depth);
+        return node;
+    }
+
+    std::unique_ptr<BuildNode> build_node(NodeEvents ev, const Box& box, int depth, double budget,
+                                          std::vector<uint8_t>& side) {
+        if (progress_) progress_->check();
+        const float leaf_cost = opt_.intersect_cost * float(ev.count);
+        if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth) return make_leaf(ev, depth);
+        const Split s = find_split(ev, box);
+        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, depth);
+        const double refs = double(s.n_left) + double(s.n_right);
+        if (refs > budget) return make_leaf(ev, depth);
+
+        Box lbox = box, rbox = box;
+        lbox.hi[s.axis] = s.pos;
+        rbox.lo[s.axis] = s.pos;
+        classify(ev, s, side);
+        NodeEvents left, right;
+        split_events(ev, s, lbox, rbox, side, left, right);
+
+        // Each child may use the parent's reference budget in proportion to
+        // its share, which bounds the total deterministically.
+        const double lbudget = std::floor(budget * double(s.n_left) / refs);
+        const double rbudget = budget - lbudget;
+
+        auto node = std::make_unique<BuildNode>();
+        node->axis = s.axis;
+        node->split = s.pos;
+        if (depth < spawn_depth_ && ev.count > 4096) {
+            auto right_task = std::async(std::launch::async, [&, r = std::move(right)]() mutable {
+                return build(std::move(r), rbox, depth + 1, rbudget);
+            });
+            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side);
+            node->child[1] = right_task.get();
+        } else {
+            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side);
+            node->child[1] = build_node(std::move(right), rbox, depth + 1, rbudget, side);
+        }
+        return node;
+    }
+};
+
+struct Flattener {
+    KdTree& tree;
+
+    uint32_t emit(const BuildNode& n) {
+        if (tree.nodes.size() >= kMaxNodes) throw std::length_error("kd-tree exceeds 2^30 nodes");
+        const uint32_t index = uint32_t(tree.nodes.size());
+        if (n.axis < 0) {
+            const uint32_t count = uint32_t(n.refs.size());
+            if (count == 1) {
+                tree.nodes.push_back(KdNode::leaf(n.refs[0], 1));
+            } else {
+                tree.nodes.push_back(KdNode::leaf(uint32_t(tree.refs.size()), count));
+                tree.refs.insert(tree.refs.end(), n.refs.begin(), n.refs.end());
+            }
+            return index;
+        }
+        tree.nodes.push_back(KdNode());
+        emit(*n.child[0]);
+        const uint32_t above = emit(*n.child[1]);
+        tree.nodes[index] = KdNode::interior(n.axis, n.split, above);
+        return index;
+    }
+};
+
+bool is_degenerate(const Triangle& t) {
+    const Vec3 n = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
+    return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
+}
+
+struct StatsWalker {
+    const KdTree& tree;
+    BuildStats& st;
+    double leaf_depth_sum = 0;
+    double sah = 0;
+    float inv_root_area = 0;
+
+    void walk(uint32_t i, const Box& box, int depth) {
+        const KdNode& n = tree.nodes[i];
+        const float p = box.area() * inv_root_area;
+        st.max_depth = std::max(st.max_depth, depth);
+        if (n.is_leaf()) {
+            ++st.leaves;
+            const uint32_t c = n.count();
+            if (c == 0) ++st.empty_leaves;
+            st.references += c;
+            st.max_leaf_size = std::max<uint64_t>(st.max_leaf_size, c);
+            leaf_depth_sum += depth;
+            sah += double(p) * tree.options.intersect_cost * c;
+            return;
+        }
+        ++st.interior_nodes;
+        sah += double(p) * tree.options.traversal_cost;
+        Box lo = box, hi = box;
+        lo.hi[n.axis()] = n.split;
+        hi.lo[n.axis()] = n.split;
+        walk(i + 1, lo, depth + 1);
+        walk(n.above_child(), hi, depth + 1);
+    }
+};
+
+void fill_stats(KdTree& tree) {
+    BuildStats& st = tree.stats;
+    StatsWalker w{tree, st};
+    const float root_area = tree.bounds.area();
+    w.inv_root_area = root_area > 0 ? 1.0f / root_area : 0.0f;
+    w.walk(0, tree.bounds, 0);
+    st.nodes = tree.nodes.size();
+    st.mean_leaf_depth = st.leaves ? w.leaf_depth_sum / double(st.leaves) : 0.0;
+    st.sah_cost = w.sah;
+    st.bytes = tree.nodes.size() * sizeof(KdNode) + tree.refs.size() * sizeof(uint32_t) +
+               tree.triangles.size() * sizeof(Triangle);
+}
+
+}  // namespace
+
+double sah_cost(const KdTree& tree) { return tree.stats.sah_cost; }
+
+KdTree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
+                     Progress* progress) {
+    const auto t0 = std::chrono::steady_clock::now();
+    KdTree tree;
+    tree.triangles = std::move(triangles);
+    tree.options = options;
+    const auto& tris = tree.triangles;
+    const uint32_t n = uint32_t(tris.size());
+
+    NodeEvents root;
+    std::vector<uint8_t> valid(n);
+    for (uint32_t i = 0; i < n; ++i) {
+        valid[i] = !is_degenerate(tris[i]);
+        if (valid[i]) {
+            tree.bounds.extend(tris[i].bounds());
+            ++root.count;
+        }
+    }
+    tree.stats.triangles = n;
+    tree.stats.degenerate = n - root.count;
+    int depth_limit = options.max_depth > 0
+                          ? options.max_depth
+                          : int(std::lround(8.0 + 1.3 * std::log2(std::max<double>(1, root.count))));
+    tree.options.max_depth = depth_limit = std::min(depth_limit, 64);
+    tree.stats.depth_limit = depth_limit;
+
+    const int threads = resolve_threads(options.threads);
+    // The three axes' event lists are independent: fill and sort them in parallel.
+    parallel_for(3, 1, threads, [&](size_t k0, size_t k1) {
+        for (size_t k = k0; k < k1; ++k) {
+            EventList& e = root.axis[k];
+            e.reserve(2 * size_t(root.count));
+            for (uint32_t i = 0; i < n; ++i) {
+                if (!valid[i]) continue;
+                Box b = tris[i].bounds();
+                if (b.lo[k] == b.hi[k]) {
+                    e.push_back({b.lo[k], i << 2 | kPlanar});
+                } else {
+                    e.push_back({b.lo[k], i << 2 | kStart});
+                    e.push_back({b.hi[k], i << 2 | kEnd});
+                }
+            }
+            std::sort(e.begin(), e.end());
+        }
+    });
+
+    std::unique_ptr<BuildNode> root_node;
+    if (root.count == 0) {
+        root_node = std::make_unique<BuildNode>();
+    } else {
+        KdBuilder builder(tris, tree.options, progress, threads);
+        const double budget = std::max(1.0, double(options.max_duplication)) * double(root.count);
+        root_node = builder.build(std::move(root), tree.bounds, 0, budget);
+    }
+    Flattener{tree}.emit(*root_node);
+    root_node.reset();
+    fill_stats(tree);
+    if (double(tree.stats.bytes) > options.memory_limit_mb * 1024.0 * 1024.0) throw std::bad_alloc();
+    tree.stats.build_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return tree;
+}
+
+}  // namespace bsp

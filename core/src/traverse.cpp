@@ -1,0 +1,157 @@
+// Front-to-back kd traversal with early exit (pbrt-v3 / Havran style),
+// a small per-ray mailbox, and the watertight triangle test.
+#include "traverse.hpp"
+
+#include <algorithm>
+
+#include "parallel.hpp"
+#include "triangle.hpp"
+
+namespace bsp {
+namespace {
+
+// A triangle referenced by several leaves is tested once per ray: a small
+// direct-mapped table of the last triangles tested. A collision only costs a
+// repeated test, never a wrong answer, because the closest hit is kept
+// whichever leaf found it.
+struct Mailbox {
+    static constexpr uint32_t kSize = 16;
+    uint32_t slot[kSize];
+    Mailbox() { std::fill(slot, slot + kSize, 0xFFFFFFFFu); }
+    bool seen(uint32_t prim) {
+        uint32_t& s = slot[prim & (kSize - 1)];
+        if (s == prim) return true;
+        s = prim;
+        return false;
+    }
+};
+
+struct Closest {
+    float t;
+    int32_t prim = -1;
+    float u = 0, v = 0;
+};
+
+// Clips [t0, t1] to the box; false when the ray misses it.
+bool clip_to_box(const Box& b, const Vec3& o, const Vec3& inv, const Vec3& d, float& t0,
+                 float& t1) {
+    for (int k = 0; k < 3; ++k) {
+        if (d[k] == 0.0f) {
+            if (o[k] < b.lo[k] || o[k] > b.hi[k]) return false;
+            continue;
+        }
+        float tn = (b.lo[k] - o[k]) * inv[k];
+        float tf = (b.hi[k] - o[k]) * inv[k];
+        if (tn > tf) std::swap(tn, tf);
+        tf *= 1.0f + 4.0f * std::numeric_limits<float>::epsilon();  // never lose the far side
+        t0 = std::max(t0, tn);
+        t1 = std::min(t1, tf);
+        if (t0 > t1) return false;
+    }
+    return true;
+}
+
+struct StackEntry {
+    uint32_t node;
+    float tmin, tmax;
+};
+
+void trace_one(const KdTree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+               Closest& hit, uint32_t& steps, uint32_t& tests) {
+    hit.t = tmax;
+    const Vec3 inv(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
+    float t0 = tmin, t1 = tmax;
+    if (!clip_to_box(tree.bounds, o, inv, d, t0, t1)) return;
+
+    // Plain arrays: the axis is a run-time index in the hot loop.
+    const float org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
+    const float idir[3] = {inv.x, inv.y, inv.z};
+    const ShearedRay sray(o, d);
+    const KdNode* nodes = tree.nodes.data();
+    const uint32_t* refs = tree.refs.data();
+    const Triangle* tris = tree.triangles.data();
+    Mailbox mailbox;
+    StackEntry stack[72];
+    int top = 0;
+    uint32_t index = 0;
+    uint32_t n_steps = 0, n_tests = 0;
+
+    for (;;) {
+        if (hit.t < t0) break;  // everything left lies beyond the closest hit
+        const KdNode node = nodes[index];
+        ++n_steps;
+        if (!node.is_leaf()) {
+            const int axis = node.axis();
+            const float tplane = (node.split - org[axis]) * idir[axis];
+            const bool below_first =
+                org[axis] < node.split || (org[axis] == node.split && dir[axis] <= 0.0f);
+            const uint32_t first = below_first ? index + 1 : node.above_child();
+            const uint32_t second = below_first ? node.above_child() : index + 1;
+            if (tplane > t1 || tplane <= 0.0f) {
+                index = first;
+            } else if (tplane < t0) {
+                index = second;
+            } else if (tplane == tplane) {
+                stack[top++] = {second, tplane, t1};
+                index = first;
+                t1 = tplane;
+            } else {
+                // NaN: the ray lies in the plane, and either side may hold its hit.
+                stack[top++] = {second, t0, t1};
+                index = first;
+            }
+            continue;
+        }
+        const uint32_t count = node.count();
+        const uint32_t* list = count == 1 ? &nodes[index].first : refs + node.first;
+        for (uint32_t i = 0; i < count; ++i) {
+            const uint32_t p = list[i];
+            if (mailbox.seen(p)) continue;
+            ++n_tests;
+            TriangleHit th;
+            if (intersect_triangle(sray, tris[p], tmin, hit.t, th)) {
+                hit.t = th.t;
+                hit.prim = int32_t(p);
+                hit.u = th.u;
+                hit.v = th.v;
+            }
+        }
+        if ((hit.prim >= 0 && hit.t <= t1) || top == 0) break;
+        --top;
+        index = stack[top].node;
+        t0 = stack[top].tmin;
+        t1 = stack[top].tmax;
+    }
+    steps = n_steps;
+    tests = n_tests;
+}
+
+}  // namespace
+
+void intersect(const KdTree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+               Progress* progress) {
+    constexpr size_t kChunk = 1024;
+    const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
+    parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
+        if (progress) progress->check();
+        for (size_t i = begin; i < end; ++i) {
+            const float* o = rays.origins + 3 * i;
+            const float* d = rays.directions + 3 * i;
+            Closest c;
+            uint32_t steps = 0, tests = 0;
+            trace_one(tree, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]),
+                      rays.tmin[i * rays.tmin_stride], rays.tmax[i * rays.tmax_stride], c, steps,
+                      tests);
+            const bool hit = c.prim >= 0;
+            hits.t[i] = hit ? c.t : kInf;
+            hits.prim[i] = c.prim;
+            hits.u[i] = hit ? c.u : 0.0f;
+            hits.v[i] = hit ? c.v : 0.0f;
+            hits.steps[i] = steps;
+            hits.tests[i] = tests;
+        }
+        if (progress) progress->add(units_per_ray * (end - begin));
+    });
+}
+
+}  // namespace bsp

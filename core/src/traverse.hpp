@@ -1,0 +1,33 @@
+// Closest-hit traversal of the kd-tree over batches of rays.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+
+#include "kd_tree.hpp"
+#include "progress.hpp"
+
+namespace bsp {
+
+// Views of caller-owned arrays (numpy buffers); nothing here allocates.
+struct RayBatch {
+    const float* origins = nullptr;     // n x 3
+    const float* directions = nullptr;  // n x 3
+    const float* tmin = nullptr;        // n, or one value when tmin_stride == 0
+    const float* tmax = nullptr;
+    size_t tmin_stride = 0, tmax_stride = 0;
+    size_t count = 0;
+};
+
+struct HitBatch {
+    float* t;        // inf on miss
+    int32_t* prim;   // -1 on miss
+    float* u;
+    float* v;
+    uint32_t* steps;  // nodes visited
+    uint32_t* tests;  // ray-triangle tests performed
+};
+
+void intersect(const KdTree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+               Progress* progress = nullptr);
+
+}  // namespace bsp

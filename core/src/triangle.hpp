@@ -1,0 +1,70 @@
+// Watertight ray-triangle intersection (Woop, Benthin & Wald, JCGT 2013).
+//
+// The ray is sheared so that it runs along +z from the origin; the triangle's
+// edge functions are then evaluated in 2-D. Edges shared by two triangles give
+// bit-identical edge functions of opposite sign, so no ray slips through a
+// shared edge - the property the Embree comparison depends on.
+#pragma once
+#include "geometry.hpp"
+
+namespace bsp {
+
+// Per-ray constants of the shear transform, computed once per ray.
+struct ShearedRay {
+    Vec3 org, dir;
+    int kx, ky, kz;
+    float sx, sy, sz;
+
+    explicit ShearedRay(const Vec3& o, const Vec3& d) : org(o), dir(d) {
+        float ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);
+        kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
+        kx = kz == 2 ? 0 : kz + 1;
+        ky = kx == 2 ? 0 : kx + 1;
+        // Swap kx and ky to keep the winding when the dominant direction is negative.
+        if (d[kz] < 0.0f) std::swap(kx, ky);
+        sx = d[kx] / d[kz];
+        sy = d[ky] / d[kz];
+        sz = 1.0f / d[kz];
+    }
+};
+
+struct TriangleHit {
+    float t, u, v;
+};
+
+// Returns true and fills `hit` when the ray hits the triangle with
+// tmin < t < tmax. u, v follow Embree: p = (1-u-v) v0 + u v1 + v v2.
+inline bool intersect_triangle(const ShearedRay& r, const Triangle& tri, float tmin, float tmax,
+                               TriangleHit& hit) {
+    const Vec3 A = tri.v[0] - r.org, B = tri.v[1] - r.org, C = tri.v[2] - r.org;
+    const float Ax = A[r.kx] - r.sx * A[r.kz], Ay = A[r.ky] - r.sy * A[r.kz];
+    const float Bx = B[r.kx] - r.sx * B[r.kz], By = B[r.ky] - r.sy * B[r.kz];
+    const float Cx = C[r.kx] - r.sx * C[r.kz], Cy = C[r.ky] - r.sy * C[r.kz];
+    float U = Cx * By - Cy * Bx;
+    float V = Ax * Cy - Ay * Cx;
+    float W = Bx * Ay - By * Ax;
+    // On an edge the single-precision edge function can round to zero;
+    // recompute those in double so that the edge is decided consistently.
+    if (U == 0.0f || V == 0.0f || W == 0.0f) {
+        U = float(double(Cx) * double(By) - double(Cy) * double(Bx));
+        V = float(double(Ax) * double(Cy) - double(Ay) * double(Cx));
+        W = float(double(Bx) * double(Ay) - double(By) * double(Ax));
+    }
+    if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
+    const float det = U + V + W;
+    if (det == 0.0f) return false;
+    // The edge functions decide hit or miss (watertight). The distance comes
+    // from the triangle's plane instead of the sheared depths: with large
+    // coordinates and a nearby plane the sheared sum cancels badly, while
+    // N.(v0 - o) / N.d stays accurate (it is exact for axis-aligned planes).
+    const Vec3 N = cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]);
+    const float t = dot(N, A) / dot(N, r.dir);
+    if (!(t > tmin && t < tmax)) return false;
+    const float inv = 1.0f / det;
+    hit.t = t;
+    hit.u = V * inv;
+    hit.v = W * inv;
+    return true;
+}
+
+}  // namespace bsp
