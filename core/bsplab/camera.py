@@ -1,0 +1,180 @@
+"""A perspective camera that frames the image exactly as Blender does.
+
+Blender's convention (`BKE_camera_params_compute_viewplane`, `BKE_camera_sensor_fit`,
+`BKE_camera_sensor_size` in blenkernel/intern/camera.cc; Cycles' `blender_camera_viewplane`
+agrees):
+
+* The camera looks down its local -Z axis, +Y is image up, +X is image right.
+* Sensor fit picks which image axis the sensor spans. AUTO compares
+  `width * pixel_aspect_x` with `height * pixel_aspect_y` and fits the larger one,
+  but always uses `sensor_width`; HORIZONTAL fits the width with `sensor_width`;
+  VERTICAL fits the height with `sensor_height`.
+* With `ycor = pixel_aspect_y / pixel_aspect_x`, the image plane at unit distance
+  spans `x in [-W/2, W/2] * s` and `y in [-ycor*H/2, ycor*H/2] * s`, where
+  `s = sensor / (lens * viewfac)` and `viewfac` is `W` (horizontal fit) or `ycor*H`
+  (vertical fit). So the fitted axis spans exactly `sensor / lens`.
+* Shifts move that window by `shift * viewfac` pixels, i.e. in units of the
+  fitted dimension (the larger one under AUTO).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any, Sequence
+
+import numpy as np
+
+SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+
+
+def _is_int(value: Any) -> bool:
+    """True for Python/numpy integers, but not for bools or integral floats."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+@dataclass
+class Camera:
+    """Blender-style perspective camera. Lengths in mm, shifts in frame units."""
+
+    matrix_world: np.ndarray = field(default_factory=lambda: np.eye(4))
+    lens: float = 50.0
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: str = "AUTO"
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+    pixel_aspect: float = 1.0  # pixel_aspect_x / pixel_aspect_y
+
+    def __post_init__(self) -> None:
+        self.matrix_world = np.array(self.matrix_world, dtype=np.float64)
+        self.validate()
+
+    # -- validation -----------------------------------------------------------
+
+    def validate(self) -> None:
+        """Raise ValueError for any parameter Blender would not accept."""
+        m = self.matrix_world = np.asarray(self.matrix_world, dtype=np.float64)
+        if m.shape != (4, 4):
+            raise ValueError(f"Camera: matrix_world must be 4x4, got shape {m.shape}")
+        if not np.all(np.isfinite(m)):
+            raise ValueError("Camera: matrix_world contains NaN or inf")
+        if np.any(np.linalg.norm(m[:3, :3], axis=0) == 0.0):
+            raise ValueError("Camera: matrix_world has a zero-length axis")
+        for name in ("lens", "sensor_width", "sensor_height", "clip_start", "pixel_aspect"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float, np.number)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"Camera: {name} must be a finite number > 0, got {value!r}")
+        for name in ("shift_x", "shift_y", "clip_end"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float, np.number)) and math.isfinite(value)):
+                raise ValueError(f"Camera: {name} must be a finite number, got {value!r}")
+        if self.clip_end <= self.clip_start:
+            raise ValueError(f"Camera: clip_end ({self.clip_end}) must exceed "
+                             f"clip_start ({self.clip_start})")
+        if self.sensor_fit not in SENSOR_FITS:
+            raise ValueError(f"Camera: sensor_fit must be one of {SENSOR_FITS}, "
+                             f"got {self.sensor_fit!r}")
+
+    # -- construction ---------------------------------------------------------
+
+    @classmethod
+    def look_at(cls, eye: Sequence[float], target: Sequence[float],
+                up: Sequence[float] = (0.0, 0.0, 1.0), fov_deg: float = 50.0,
+                sensor_width: float = 36.0, **kwargs: Any) -> "Camera":
+        """A camera at `eye` looking at `target`.
+
+        `fov_deg` is the angle spanned by `sensor_width` (Blender's `angle_x`):
+        the horizontal field of view for landscape images under AUTO fit.
+        Extra keyword arguments are passed on to the constructor.
+        """
+        eye_v, target_v, up_v = (np.asarray(v, dtype=np.float64).reshape(3)
+                                 for v in (eye, target, up))
+        if not (0.0 < fov_deg < 180.0):
+            raise ValueError(f"Camera.look_at: fov_deg must be in (0, 180), got {fov_deg}")
+        forward = target_v - eye_v
+        if not np.all(np.isfinite(forward)) or np.linalg.norm(forward) == 0.0:
+            raise ValueError("Camera.look_at: eye and target must be distinct finite points")
+        forward /= np.linalg.norm(forward)
+        right = np.cross(forward, up_v)
+        if np.linalg.norm(right) < 1e-9 * max(np.linalg.norm(up_v), 1e-300):
+            # Looking along `up`: any perpendicular will do, pick a stable one.
+            right = np.cross(forward, np.eye(3)[np.argmin(np.abs(forward))])
+        right /= np.linalg.norm(right)
+        cam_up = np.cross(right, forward)
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, cam_up, -forward, eye_v
+        lens = sensor_width / (2.0 * math.tan(math.radians(fov_deg) / 2.0))
+        return cls(matrix_world=m, lens=lens, sensor_width=sensor_width, **kwargs)
+
+    # -- framing --------------------------------------------------------------
+
+    def fit(self, width: int, height: int) -> str:
+        """The sensor fit ('HORIZONTAL' or 'VERTICAL') actually used for an image."""
+        if self.sensor_fit != "AUTO":
+            return self.sensor_fit
+        # Blender compares aspect-corrected sizes; ties give the same frame either way.
+        return "HORIZONTAL" if width * self.pixel_aspect >= height else "VERTICAL"
+
+    def viewplane(self, width: int, height: int) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the image window on the camera's z = -1 plane."""
+        _check_size(width, height)
+        self.validate()
+        ycor = 1.0 / self.pixel_aspect
+        if self.fit(width, height) == "HORIZONTAL":
+            sensor, viewfac = self.sensor_width, float(width)
+        else:
+            sensor = self.sensor_height if self.sensor_fit == "VERTICAL" else self.sensor_width
+            viewfac = ycor * height
+        scale = sensor / (self.lens * viewfac)  # unit-distance size of one viewfac unit
+        dx, dy = self.shift_x * viewfac, self.shift_y * viewfac
+        return ((-0.5 * width + dx) * scale, (0.5 * width + dx) * scale,
+                (-0.5 * ycor * height + dy) * scale, (0.5 * ycor * height + dy) * scale)
+
+    def rays(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+        """Primary rays through pixel centres, row-major with row 0 = image top.
+
+        Returns `(origins, directions)`, both float32 `(H*W, 3)`; directions are
+        unit length. Rays start at the eye; `clip_start`/`clip_end` are only
+        carried along for the caller (they are view-axis depths in Blender).
+        """
+        xmin, xmax, ymin, ymax = self.viewplane(width, height)
+        xs = xmin + (np.arange(width) + 0.5) * ((xmax - xmin) / width)
+        ys = ymax - (np.arange(height) + 0.5) * ((ymax - ymin) / height)  # top row first
+        local = np.empty((height, width, 3))
+        local[..., 0] = xs[None, :]
+        local[..., 1] = ys[:, None]
+        local[..., 2] = -1.0
+        # Blender ignores object scale for the view, so use the unit axes.
+        axes = self.matrix_world[:3, :3] / np.linalg.norm(self.matrix_world[:3, :3], axis=0)
+        dirs = local.reshape(-1, 3) @ axes.T
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        origins = np.broadcast_to(self.matrix_world[:3, 3], dirs.shape)
+        return origins.astype(np.float32), dirs.astype(np.float32)
+
+    # -- serialization --------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-compatible dict (matrix as nested lists, row-major)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self)}
+        out["matrix_world"] = self.matrix_world.tolist()
+        return {k: (float(v) if isinstance(v, (np.floating, np.integer)) else v)
+                for k, v in out.items()}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "Camera":
+        """Inverse of `to_dict`; unknown keys are an error, missing ones default."""
+        known = {f.name for f in fields(cls)}
+        unknown = set(data) - known
+        if unknown:
+            raise ValueError(f"Camera.from_dict: unknown keys {sorted(unknown)}")
+        return cls(**data)
+
+
+def _check_size(width: Any, height: Any) -> None:
+    """Image sizes must be positive integers (not floats, not bools)."""
+    for name, value in (("width", width), ("height", height)):
+        if not _is_int(value) or value <= 0:
+            raise ValueError(f"Camera: image {name} must be a positive integer, got {value!r}")

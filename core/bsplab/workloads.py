@@ -1,0 +1,67 @@
+"""Ray workloads shared by the tests, the benchmark and the experiments:
+primary rays from a camera that frames the scene, and incoherent rays."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .camera import Camera
+
+
+def shared_scenes_dir() -> Path | None:
+    """The team's benchmark meshes (../shared/scenes beside the checkout), or
+    $BSPLAB_SHARED_SCENES; None when absent, so callers can skip cleanly."""
+    env = os.environ.get("BSPLAB_SHARED_SCENES")
+    candidates = [Path(env)] if env else []
+    here = Path(__file__).resolve()
+    candidates += [p / "shared" / "scenes" for p in here.parents]
+    candidates += [Path.cwd().resolve().parent / "shared" / "scenes"]
+    for c in candidates:
+        if c.is_dir() and any(c.glob("*.ply")):
+            return c
+    return None
+
+
+def shared_scene_paths() -> list[Path]:
+    d = shared_scenes_dir()
+    return sorted(d.glob("*.ply")) if d else []
+
+
+def bounds(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    pts = triangles.reshape(-1, 3)
+    return pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64)
+
+
+def framing_camera(triangles: np.ndarray, fov_deg: float = 60.0) -> Camera:
+    """A camera inside the upper corner region of the scene box looking at its
+    centre: sees both the inside of rooms and the outside of objects. The up
+    axis is the box's smallest-looking vertical guess: y when y spans less
+    than both x and z (OBJ/PLY convention), else z (Blender's)."""
+    lo, hi = bounds(triangles)
+    centre, ext = (lo + hi) / 2, hi - lo
+    up_axis = 1 if ext[1] <= min(ext[0], ext[2]) else 2
+    offset = ext * 0.3
+    offset[up_axis] = ext[up_axis] * 0.2
+    up = np.zeros(3)
+    up[up_axis] = 1.0
+    return Camera.look_at(centre + offset, centre, up=tuple(up), fov_deg=fov_deg)
+
+
+def primary_rays(triangles: np.ndarray, width: int, height: int,
+                 camera: Camera | None = None) -> tuple[np.ndarray, np.ndarray]:
+    cam = camera or framing_camera(triangles)
+    return cam.rays(width, height)
+
+
+def random_rays(triangles: np.ndarray, count: int, seed: int = 1):
+    """Origins uniform in the scene box, directions uniform on the sphere:
+    the most incoherent workload there is."""
+    lo, hi = bounds(triangles)
+    rng = np.random.default_rng(seed)
+    origins = rng.uniform(lo, hi, (count, 3)).astype(np.float32)
+    d = rng.normal(size=(count, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return origins, d.astype(np.float32)

@@ -1,0 +1,215 @@
+"""Mesh readers and writer: formats, property types, triangulation, errors."""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bsplab import io
+
+REPO = Path(__file__).resolve().parents[2]
+SHARED = REPO.parent / "shared" / "scenes"
+
+
+def _header(fmt, vertex_props, face_props, nv, nf, extra=""):
+    lines = ["ply", f"format {fmt} 1.0", "comment test file", extra.rstrip("\n")]
+    lines += [f"element vertex {nv}"] + [f"property {p}" for p in vertex_props]
+    lines += [f"element face {nf}"] + [f"property {p}" for p in face_props]
+    return ("\n".join(l for l in lines if l) + "\nend_header\n").encode()
+
+
+# A unit square split as a quad plus a triangle on top: exercises fan triangulation.
+VERTS = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 2, 0]], dtype=np.float64)
+POLYS = [[0, 1, 2, 3], [3, 2, 4]]
+TRIS = np.array([[0, 1, 2], [0, 2, 3], [3, 2, 4]])
+
+
+def _binary_ply(order="<", polys=POLYS):
+    """Vertex: double xyz + uchar + float; face: uchar, list uint8 uint16, int."""
+    vdt = np.dtype([("x", order + "f8"), ("y", order + "f8"), ("z", order + "f8"),
+                    ("red", "u1"), ("nx", order + "f4")])
+    vrec = np.zeros(len(VERTS), vdt)
+    for i, c in enumerate("xyz"):
+        vrec[c] = VERTS[:, i]
+    vrec["red"], vrec["nx"] = 7, 0.25
+    body = vrec.tobytes()
+    for poly in polys:
+        body += np.array([9], "u1").tobytes() + np.array([len(poly)], "u1").tobytes()
+        body += np.array(poly, order + "u2").tobytes() + np.array([-1], order + "i4").tobytes()
+    fmt = "binary_little_endian" if order == "<" else "binary_big_endian"
+    head = _header(fmt, ["double x", "double y", "double z", "uchar red", "float nx"],
+                   ["uchar intensity", "list uint8 uint16 vertex_indices", "int flags"],
+                   len(VERTS), len(polys), extra="element camera 1\nproperty float fov")
+    # A "camera" element precedes vertex in the header, so its bytes come first.
+    camera = np.array([40.0], order + "f4").tobytes()
+    return head + camera + body
+
+
+@pytest.mark.parametrize("order", ["<", ">"])
+def test_binary_ply_mixed_types_and_polygons(tmp_path, order):
+    path = tmp_path / "mixed.ply"
+    path.write_bytes(_binary_ply(order))
+    v, f = io.read_ply(path)
+    assert v.dtype == np.float32 and f.dtype == np.int32
+    np.testing.assert_array_equal(v, VERTS.astype(np.float32))
+    np.testing.assert_array_equal(f, TRIS)
+
+
+def test_binary_ply_all_quads_uses_fixed_layout(tmp_path, monkeypatch):
+    path = tmp_path / "quads.ply"
+    path.write_bytes(_binary_ply(polys=[[0, 1, 2, 3], [1, 2, 4, 3]]))
+    monkeypatch.setattr(io, "_read_binary_variable", _fail)
+    _, f = io.read_ply(path)
+    np.testing.assert_array_equal(f, [[0, 1, 2], [0, 2, 3], [1, 2, 4], [1, 4, 3]])
+
+
+def _fail(*args, **kwargs):
+    raise AssertionError("slow per-record path used for a fixed-size layout")
+
+
+def test_ascii_ply_with_crlf_and_extra_properties(tmp_path):
+    head = _header("ascii", ["float x", "float y", "float z", "uchar red"],
+                   ["list uchar int vertex_indices"], 5, 2).replace(b"\n", b"\r\n")
+    body = "".join(f"{x} {y} {z} 200\r\n" for x, y, z in VERTS)
+    body += "4 0 1 2 3\r\n3 3 2 4\r\n"
+    path = tmp_path / "a.ply"
+    path.write_bytes(head + body.encode())
+    v, f = io.read_ply(path)
+    np.testing.assert_array_equal(v, VERTS.astype(np.float32))
+    np.testing.assert_array_equal(f, TRIS)
+    np.testing.assert_array_equal(io.load_mesh(path), VERTS.astype(np.float32)[TRIS])
+
+
+def test_write_ply_round_trip_and_exact_layout(tmp_path):
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(50, 3)).astype(np.float32)
+    f = rng.integers(0, 50, (80, 3)).astype(np.int32)
+    path = tmp_path / "w.ply"
+    io.write_ply(path, v, f)
+    data = path.read_bytes()
+    header = data[:data.index(b"end_header\n") + len(b"end_header\n")]
+    assert b"format binary_little_endian 1.0" in header
+    assert b"property list uchar int vertex_indices" in header
+    assert len(data) == len(header) + 12 * 50 + 13 * 80
+    v2, f2 = io.read_ply(path)
+    np.testing.assert_array_equal(v2, v)
+    np.testing.assert_array_equal(f2, f)
+
+
+def test_write_ply_rejects_bad_input(tmp_path):
+    with pytest.raises(ValueError):
+        io.write_ply(tmp_path / "x.ply", np.zeros((3, 2)), np.zeros((1, 3), int))
+    with pytest.raises(ValueError, match="out of range"):
+        io.write_ply(tmp_path / "x.ply", np.zeros((3, 3)), [[0, 1, 3]])
+
+
+def test_obj_forms_negative_indices_and_polygons(tmp_path):
+    text = """# comment
+o thing
+v 0 0 0
+v 1 0 0
+v 1 1 0 1.0
+vt 0 0
+vn 0 0 1
+v 0 1 0
+f 1/1/1 2/1/1 3/1/1 4/1/1
+v 0.5 2 0
+f -2//1 -3//1 -1//1
+usemtl x
+l 1 2
+"""
+    path = tmp_path / "m.obj"
+    path.write_text(text)
+    v, f = io.read_obj(path)
+    np.testing.assert_array_equal(v, VERTS.astype(np.float32))
+    np.testing.assert_array_equal(f, [[0, 1, 2], [0, 2, 3], [3, 2, 4]])
+    assert io.load_mesh(path).shape == (3, 3, 3)
+
+
+@pytest.mark.parametrize("content, message", [
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "index 0"),
+    ("v 0 0 0\nv 1 0 0\nf 1 2\n", "need at least 3"),
+    ("v 0 0 zero\n", "non-numeric"),
+    ("v 0 0 0\nf a b c\n", "line 2"),
+])
+def test_obj_errors_name_file_and_problem(tmp_path, content, message):
+    path = tmp_path / "bad.obj"
+    path.write_text(content)
+    with pytest.raises(ValueError, match=message) as err:
+        io.read_obj(path)
+    assert "bad.obj" in str(err.value)
+
+
+def _good_ply(tmp_path):
+    path = tmp_path / "good.ply"
+    io.write_ply(path, VERTS, TRIS)
+    return path.read_bytes()
+
+
+def test_ply_errors_name_file_and_problem(tmp_path):
+    good = _good_ply(tmp_path)
+    cases = {
+        "magic.ply": (b"plx" + good[3:], "not a PLY"),
+        "noend.ply": (good.replace(b"end_header", b"end_headr"), "end_header"),
+        "count.ply": (good.replace(b"element vertex 5", b"element vertex five"), "header line"),
+        "type.ply": (good.replace(b"property float y", b"property flaot y"), "flaot"),
+        "format.ply": (good.replace(b"binary_little_endian", b"binary_middle_endian"), "format"),
+        "trunc.ply": (good[:-7], "truncated"),
+        "range.ply": (good[:-4] + np.array([5], "<i4").tobytes(), "out of range"),
+        "noxyz.ply": (good.replace(b"property float z", b"property float w"), "z"),
+    }
+    for name, (blob, message) in cases.items():
+        (tmp_path / name).write_bytes(blob)
+        with pytest.raises(ValueError, match=message) as err:
+            io.read_ply(tmp_path / name)
+        assert name in str(err.value), name
+
+
+def test_ascii_ply_truncated(tmp_path):
+    head = _header("ascii", ["float x", "float y", "float z"], ["list uchar int vertex_indices"], 3, 1)
+    path = tmp_path / "t.ply"
+    path.write_bytes(head + b"0 0 0\n1 0 0\n0 1 0\n3 0 1\n")
+    with pytest.raises(ValueError, match="truncated"):
+        io.read_ply(path)
+
+
+def test_missing_file_and_unknown_extension(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        io.load_mesh(tmp_path / "nope.ply")
+    with pytest.raises(FileNotFoundError):
+        io.load_mesh(tmp_path / "nope.obj")
+    (tmp_path / "mesh.stl").write_text("solid x")
+    with pytest.raises(ValueError, match="stl"):
+        io.load_mesh(tmp_path / "mesh.stl")
+
+
+def test_fan_triangulate_mixed_sizes():
+    tris = io.fan_triangulate(np.array([5, 3]), np.array([10, 11, 12, 13, 14, 20, 21, 22]))
+    np.testing.assert_array_equal(tris, [[10, 11, 12], [10, 12, 13], [10, 13, 14], [20, 21, 22]])
+
+
+# -- the shared benchmark scenes ---------------------------------------------------
+
+
+def _shared_rows():
+    """(file, triangles, vertices) from the table in ../shared/scenes/SOURCES.md."""
+    sources = SHARED / "SOURCES.md"
+    if not sources.is_file():
+        return []
+    pattern = re.compile(r"^\|\s*([\w.-]+\.ply)\s*\|\s*([\d,]+)\s*\|\s*([\d,]+)\s*\|", re.M)
+    return [(m[1], int(m[2].replace(",", "")), int(m[3].replace(",", "")))
+            for m in pattern.finditer(sources.read_text())]
+
+
+@pytest.mark.parametrize("row", _shared_rows() or [None])
+def test_shared_scene_counts(row):
+    if row is None:
+        pytest.skip(f"{SHARED} (with SOURCES.md) is absent")
+    name, triangles, vertices = row
+    v, f = io.read_ply(SHARED / name)
+    assert (len(f), len(v)) == (triangles, vertices)
+    assert np.all(np.isfinite(v))
+    tris = io.load_mesh(SHARED / name)
+    assert tris.shape == (triangles, 3, 3) and tris.dtype == np.float32
