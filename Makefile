@@ -1,0 +1,48 @@
+# BSP Lab: the two commands a newcomer needs are `make demo` and `make test`.
+# Both set up everything in a local virtual environment (.venv) first.
+
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+# numpy < 2 matches the numpy that Blender 4.2-5.0 ship, so the core is tested
+# against what the add-on meets.
+DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4"
+
+.PHONY: all venv core demo test test-core test-blender bench addon scenes clean
+
+all: demo
+
+$(BIN)/.deps: Makefile
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q $(DEPS)
+	touch $@
+
+venv: $(BIN)/.deps
+
+# Rebuilt every time: CMake's build folder (core/build) makes it incremental.
+core: venv
+	$(BIN)/python -m pip install -q --no-build-isolation --no-deps ./core
+
+demo: core
+	$(BIN)/python -m bsplab demo --scene spheres --out out/demo.png
+
+test: test-core test-blender
+
+test-core: core
+	$(BIN)/python -m pytest -q core/tests
+
+test-blender: core
+	bash blender_tests/run_all.sh $(abspath $(BIN)/python)
+
+bench: core
+	$(BIN)/python -m bsplab bench --out docs/benchmark.md
+
+addon: core
+	$(BIN)/python addon/build_extension.py
+
+scenes: core
+	$(BIN)/python -m bsplab scenes --out scenes
+
+clean:
+	rm -rf core/build out dist

@@ -1,0 +1,138 @@
+"""Command line: `python -m bsplab {demo,bench,scenes,methods}`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def cmd_demo(args) -> int:
+    import bsplab
+    from bsplab import bench, oracle, png, scenes, workloads
+
+    tris = bench.load(args.scene)
+    camera = (scenes.default_camera(args.scene) if args.scene in scenes.NAMES
+              else workloads.framing_camera(tris))
+    print(f"scene {args.scene}: {len(tris):,} triangles; method {args.method}")
+    progress = bsplab.Progress()
+    tree = bsplab.build(tris, method=args.method, progress=progress)
+    image, rstats = bsplab.render(tree, camera, args.width, args.height, args.mode,
+                                  threads=args.threads)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    png.write_png(out, image)
+    s = tree.stats
+    rows = [
+        ("build time", f"{s['build_seconds']:.3f} s"),
+        ("nodes (interior / leaves / empty)",
+         f"{s['nodes']:,} ({s['interior_nodes']:,} / {s['leaves']:,} / {s['empty_leaves']:,})"),
+        ("depth (max / limit / mean leaf)",
+         f"{s['max_depth']} / {s['depth_limit']} / {s['mean_leaf_depth']:.1f}"),
+        ("references (per triangle)", f"{s['references']:,} ({s['duplication']:.2f})"),
+        ("triangles per leaf (mean / max)", f"{s['mean_leaf_size']:.2f} / {s['max_leaf_size']}"),
+        ("degenerate triangles", f"{s['degenerate']:,}"),
+        ("memory", f"{s['bytes'] / 2**20:.2f} MiB (nodes {s['node_bytes'] / 2**20:.2f} MiB)"),
+        ("SAH cost", f"{s['sah_cost']:.2f}"),
+        ("render", f"{rstats['width']}x{rstats['height']} {rstats['mode']}, "
+                   f"{rstats['seconds'] * 1e3:.1f} ms, {rstats['rays_per_second'] / 1e6:.2f} Mray/s"),
+        ("steps / tests per ray", f"{rstats['mean_steps']:.1f} / {rstats['mean_tests']:.2f}"),
+    ]
+    if oracle.available():
+        o, d = camera.rays(args.width, args.height)
+        emb = oracle.EmbreeTracer(tris)
+        ref = emb.intersect(o, d)
+        start = time.perf_counter()
+        ours = tree.intersect(o, d, threads=1)
+        t1 = time.perf_counter() - start
+        c = oracle.compare(ours, ref, triangles=tris, origins=o, directions=d)
+        rows += [
+            ("Embree (same rays, 1 thread)",
+             f"{emb.last_seconds * 1e3:.1f} ms; ours 1 thread {t1 * 1e3:.1f} ms "
+             f"= {emb.last_seconds / t1:.2f}x Embree's speed"),
+            ("agreement with Embree",
+             f"{c['agreement'] * 100:.4f}% ({c['grazing']} grazing, "
+             f"{len(c['unexplained'])} unexplained)"),
+        ]
+    else:
+        rows.append(("Embree", "embreex not installed: no comparison"))
+    width = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"  {k:<{width}}  {v}")
+    print(f"image written to {out}")
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from bsplab import bench
+    scenes_ = args.scenes or bench.default_scenes()
+    methods = args.methods or bench.default_methods()
+    rows = bench.run(scenes_, methods, primary_side=args.side, random_count=args.rays,
+                     repeats=args.repeats)
+    if args.out:
+        command = "python -m bsplab " + " ".join(sys.argv[1:])
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(bench.markdown(rows, command))
+        print(f"written {args.out}")
+    bad = [r for r in rows for x in r.results.values() if x["unexplained"]]
+    return 1 if bad else 0
+
+
+def cmd_scenes(args) -> int:
+    from bsplab import scenes
+    scenes.main_write(args.out)
+    return 0
+
+
+def cmd_methods(args) -> int:
+    import bsplab
+    for name, info in bsplab.methods().items():
+        print(f"{name:12} {info['label']:20} {info['description']}")
+    return 0
+
+
+def main(argv=None) -> int:
+    from bsplab.render import RENDER_MODES
+    p = argparse.ArgumentParser(prog="python -m bsplab", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    d = sub.add_parser("demo", help="build a tree, render a preview PNG, print statistics")
+    d.add_argument("--scene", default="spheres",
+                   help="generated scene name, shared mesh name, or a .ply/.obj path")
+    d.add_argument("--method", default="kd")
+    d.add_argument("--mode", default="shaded", choices=RENDER_MODES)
+    d.add_argument("--width", type=int, default=640)
+    d.add_argument("--height", type=int, default=480)
+    d.add_argument("--threads", type=int, default=0)
+    d.add_argument("--out", default="out/demo.png")
+    d.set_defaults(func=cmd_demo)
+
+    b = sub.add_parser("bench", help="build and trace time against Embree")
+    b.add_argument("--scenes", nargs="*", help="default: generated + all shared meshes")
+    b.add_argument("--methods", nargs="*", help="default: every method")
+    b.add_argument("--side", type=int, default=512, help="primary rays: side x side")
+    b.add_argument("--rays", type=int, default=250_000, help="random rays")
+    b.add_argument("--repeats", type=int, default=3)
+    b.add_argument("--out", help="write a Markdown report here")
+    b.set_defaults(func=cmd_bench)
+
+    s = sub.add_parser("scenes", help="(re)write the generated scenes as PLY files")
+    s.add_argument("--out", default="scenes")
+    s.set_defaults(func=cmd_scenes)
+
+    m = sub.add_parser("methods", help="list the tree methods")
+    m.set_defaults(func=cmd_methods)
+
+    args = p.parse_args(argv)
+    try:
+        return args.func(args)
+    except (ValueError, TypeError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
