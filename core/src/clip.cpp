@@ -47,13 +47,12 @@ int clip_plane(const ClipVertex* in, int n, ClipVertex* out, int axis, float pla
     return m;
 }
 
-}  // namespace
-
-Box clipped_bounds(const Triangle& tri, const Box& box) {
-    ClipVertex buf[2][kMaxVerts + 3];
+// Clips the triangle to the box; returns the vertex count, the polygon in `out`.
+int clip_to_box(const Triangle& tri, const Box& box, ClipVertex (&buf)[2][kMaxVerts + 3],
+                int& cur) {
     int n = 3;
     for (int i = 0; i < 3; ++i) buf[0][i] = {tri.v[i], Vec3(0, 0, 0)};
-    int cur = 0;
+    cur = 0;
     for (int axis = 0; axis < 3 && n > 0; ++axis) {
         n = clip_plane(buf[cur], n, buf[1 - cur], axis, box.lo[axis], 1.0f);
         cur = 1 - cur;
@@ -61,13 +60,40 @@ Box clipped_bounds(const Triangle& tri, const Box& box) {
         n = clip_plane(buf[cur], n, buf[1 - cur], axis, box.hi[axis], -1.0f);
         cur = 1 - cur;
     }
+    return n;
+}
+
+Box padded_bounds(const ClipVertex* v, int n, const Box& box) {
     Box b;
     for (int i = 0; i < n; ++i) {
-        const ClipVertex& v = buf[cur][i];
-        b.extend(v.p - v.err);
-        b.extend(v.p + v.err);
+        b.extend(v[i].p - v[i].err);
+        b.extend(v[i].p + v[i].err);
     }
     return b.intersect(box);
+}
+
+}  // namespace
+
+Box clipped_bounds(const Triangle& tri, const Box& box) {
+    ClipVertex buf[2][kMaxVerts + 3];
+    int cur;
+    const int n = clip_to_box(tri, box, buf, cur);
+    return padded_bounds(buf[cur], n, box);
+}
+
+void split_clipped_bounds(const Triangle& tri, const Box& box, int axis, float pos, Box& below,
+                          Box& above) {
+    ClipVertex buf[2][kMaxVerts + 3];
+    ClipVertex half[kMaxVerts + 4];
+    int cur;
+    const int n = clip_to_box(tri, box, buf, cur);
+    Box bbox = box, abox = box;
+    bbox.hi[axis] = pos;
+    abox.lo[axis] = pos;
+    int m = clip_plane(buf[cur], n, half, axis, pos, -1.0f);
+    below = padded_bounds(half, m, bbox);
+    m = clip_plane(buf[cur], n, half, axis, pos, 1.0f);
+    above = padded_bounds(half, m, abox);
 }
 
 }  // namespace bsp

@@ -10,4 +10,9 @@ namespace bsp {
 // inwards could drop a triangle from a cell it really reaches.
 Box clipped_bounds(const Triangle& tri, const Box& box);
 
+// The bounds of the parts of `tri` inside `box` on either side of the plane
+// x[axis] = pos: one clip to the box, then one split of the polygon.
+void split_clipped_bounds(const Triangle& tri, const Box& box, int axis, float pos, Box& below,
+                          Box& above);
+
 }  // namespace bsp

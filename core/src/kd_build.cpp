@@ -67,13 +67,16 @@ struct BuildNode {
     std::vector<uint32_t> refs;
 };
 
+// Nodes with more triangles than this split their three axes in parallel.
+constexpr uint32_t kParallelAxes = 1u << 16;
+
 enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2 };
 
 class KdBuilder {
 public:
     KdBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
               int threads)
-        : tris_(tris), opt_(opt), progress_(progress) {
+        : tris_(tris), opt_(opt), progress_(progress), threads_(threads) {
         spawn_depth_ = 0;
         while ((1 << spawn_depth_) < threads) ++spawn_depth_;
         if (threads > 1) spawn_depth_ += 2;  // a few more tasks than cores, for balance
@@ -88,44 +91,66 @@ private:
     const std::vector<Triangle>& tris_;
     const BuildOptions& opt_;
     Progress* progress_;
+    int threads_;
     int spawn_depth_;
 
-    Split find_split(const NodeEvents& ev, const Box& box) const {
+    // The cheapest SAH split along axis k, sweeping its sorted events once.
+    Split find_split_axis(const NodeEvents& ev, const Box& box, int k) const {
         Split best;
         const Vec3 d = box.hi - box.lo;
         const float parent_area = box.area();
-        if (!(parent_area > 0.0f)) return best;
+        if (!(parent_area > 0.0f) || !(d[k] > 0.0f)) return best;
         const float inv_area = 1.0f / parent_area;
         const float ki = opt_.intersect_cost, kt = opt_.traversal_cost;
-        for (int k = 0; k < 3; ++k) {
-            if (!(d[k] > 0.0f)) continue;
-            const int a = (k + 1) % 3, b = (k + 2) % 3;
-            const float cap = d[a] * d[b], rim = d[a] + d[b];
-            const EventList& e = ev.axis[k];
-            uint32_t nl = 0, nr = ev.count;
-            for (size_t i = 0; i < e.size();) {
-                const float p = e[i].pos;
-                uint32_t ends = 0, planars = 0, starts = 0;
-                while (i < e.size() && e[i].pos == p && e[i].type() == kEnd) ++ends, ++i;
-                while (i < e.size() && e[i].pos == p && e[i].type() == kPlanar) ++planars, ++i;
-                while (i < e.size() && e[i].pos == p && e[i].type() == kStart) ++starts, ++i;
-                nr -= planars + ends;
-                if (p > box.lo[k] && p < box.hi[k]) {
-                    const float pl = 2.0f * (cap + (p - box.lo[k]) * rim) * inv_area;
-                    const float pr = 2.0f * (cap + (box.hi[k] - p) * rim) * inv_area;
-                    for (int planar_left = 0; planar_left < 2; ++planar_left) {
-                        uint32_t l = nl + (planar_left ? planars : 0);
-                        uint32_t r = nr + (planar_left ? 0 : planars);
-                        float cost = kt + ki * (pl * float(l) + pr * float(r));
-                        if (l == 0 || r == 0) cost *= 1.0f - opt_.empty_bonus;
-                        if (cost < best.cost) {
-                            best = {k, p, bool(planar_left), cost, l, r};
-                        }
-                    }
+        const int a = (k + 1) % 3, b = (k + 2) % 3;
+        const float cap = d[a] * d[b], rim = d[a] + d[b];
+        const EventList& e = ev.axis[k];
+        uint32_t nl = 0, nr = ev.count;
+        for (size_t i = 0; i < e.size();) {
+            const float p = e[i].pos;
+            uint32_t ends = 0, planars = 0, starts = 0;
+            while (i < e.size() && e[i].pos == p && e[i].type() == kEnd) ++ends, ++i;
+            while (i < e.size() && e[i].pos == p && e[i].type() == kPlanar) ++planars, ++i;
+            while (i < e.size() && e[i].pos == p && e[i].type() == kStart) ++starts, ++i;
+            nr -= planars + ends;
+            const bool inside = p > box.lo[k] && p < box.hi[k];
+            // On the cell's own face a split can still pay: it cuts the
+            // triangles lying in that face (walls, floors) off into a flat
+            // cell, so rays crossing the rest of the cell never test them.
+            const bool at_lo = p == box.lo[k] && planars > 0;
+            const bool at_hi = p == box.hi[k] && planars > 0;
+            if (inside || at_lo || at_hi) {
+                const float pl = 2.0f * (cap + (p - box.lo[k]) * rim) * inv_area;
+                const float pr = 2.0f * (cap + (box.hi[k] - p) * rim) * inv_area;
+                for (int planar_left = at_hi ? 0 : 1; planar_left >= (at_lo ? 1 : 0);
+                     --planar_left) {
+                    uint32_t l = nl + (planar_left ? planars : 0);
+                    uint32_t r = nr + (planar_left ? 0 : planars);
+                    float cost = kt + ki * (pl * float(l) + pr * float(r));
+                    if (l == 0 || r == 0) cost *= 1.0f - opt_.empty_bonus;
+                    if (cost < best.cost) best = {k, p, bool(planar_left), cost, l, r};
                 }
-                nl += starts + planars;
             }
+            nl += starts + planars;
         }
+        return best;
+    }
+
+    Split find_split(const NodeEvents& ev, const Box& box) const {
+        Split per_axis[3];
+        if (threads_ > 1 && ev.count > kParallelAxes) {
+            auto a1 = std::async(std::launch::async, [&] { return find_split_axis(ev, box, 1); });
+            auto a2 = std::async(std::launch::async, [&] { return find_split_axis(ev, box, 2); });
+            per_axis[0] = find_split_axis(ev, box, 0);
+            per_axis[1] = a1.get();
+            per_axis[2] = a2.get();
+        } else {
+            for (int k = 0; k < 3; ++k) per_axis[k] = find_split_axis(ev, box, k);
+        }
+        // Strictly cheaper wins, so ties go to the lower axis whatever the threads.
+        Split best = per_axis[0];
+        for (int k = 1; k < 3; ++k)
+            if (per_axis[k].cost < best.cost) best = per_axis[k];
         return best;
     }
 
@@ -155,8 +180,10 @@ private:
 
         EventList new_left[3], new_right[3];
         for (uint32_t t : straddling) {
-            Box lb = clipped_bounds(tris_[t], lbox);
-            Box rb = clipped_bounds(tris_[t], rbox);
+            Box parent = lbox;
+            parent.hi[s.axis] = rbox.hi[s.axis];
+            Box lb, rb;
+            split_clipped_bounds(tris_[t], parent, s.axis, s.pos, lb, rb);
             // The plane cuts the triangle inside the cell, so both halves are
             // non-empty; rounding can still empty one, and then the whole
             // triangle box (conservative) stands in.
@@ -167,29 +194,50 @@ private:
         }
         left.count = s.n_left;
         right.count = s.n_right;
-        for (int k = 0; k < 3; ++k) {
-            EventList only_left, only_right;
-            only_left.reserve(ev.axis[k].size());
-            only_right.reserve(ev.axis[k].size());
-            for (const Event& e : ev.axis[k]) {
-                uint8_t sd = side[e.tri()];
-                if (sd == kLeftOnly) only_left.push_back(e);
-                else if (sd == kRightOnly) only_right.push_back(e);
+        auto split_axis = [&](int k) {
+            std::sort(new_left[k].begin(), new_left[k].end());
+            std::sort(new_right[k].begin(), new_right[k].end());
+            const EventList& in = ev.axis[k];
+            size_t nl = 0, nr = 0;
+            for (const Event& e : in) {
+                const uint8_t sd = side[e.tri()];
+                nl += sd == kLeftOnly;
+                nr += sd == kRightOnly;
+            }
+            EventList& l = left.axis[k];
+            EventList& r = right.axis[k];
+            l.resize(nl + new_left[k].size());
+            r.resize(nr + new_right[k].size());
+            size_t il = 0, ir = 0;
+            for (const Event& e : in) {
+                const uint8_t sd = side[e.tri()];
+                if (sd == kLeftOnly) l[il++] = e;
+                else if (sd == kRightOnly) r[ir++] = e;
             }
             EventList().swap(ev.axis[k]);  // free the parent's list early
-            merge_into(only_left, new_left[k], left.axis[k]);
-            merge_into(only_right, new_right[k], right.axis[k]);
+            merge_tail(l, nl, new_left[k]);
+            merge_tail(r, nr, new_right[k]);
+        };
+        if (threads_ > 1 && ev.count > kParallelAxes) {
+            // Big nodes near the root: the three axes split in parallel.
+            auto a1 = std::async(std::launch::async, split_axis, 1);
+            auto a2 = std::async(std::launch::async, split_axis, 2);
+            split_axis(0);
+            a1.get();
+            a2.get();
+        } else {
+            for (int k = 0; k < 3; ++k) split_axis(k);
         }
     }
 
-    static void merge_into(EventList& sorted, EventList& extra, EventList& out) {
-        std::sort(extra.begin(), extra.end());
-        if (extra.empty()) {
-            out = std::move(sorted);
-            return;
+    // `out` holds `n` sorted events followed by room for `extra`; merges the
+    // sorted `extra` in from the back, in place.
+    static void merge_tail(EventList& out, size_t n, const EventList& extra) {
+        size_t i = n, j = extra.size(), w = n + extra.size();
+        while (j > 0) {
+            if (i > 0 && extra[j - 1] < out[i - 1]) out[--w] = out[--i];
+            else out[--w] = extra[--j];
         }
-        out.resize(sorted.size() + extra.size());
-        std::merge(sorted.begin(), sorted.end(), extra.begin(), extra.end(), out.begin());
     }
 
     std::unique_ptr<BuildNode> make_leaf(const NodeEvents& ev, int depth) const {
