@@ -67,13 +67,17 @@ def number(value, name: str, *, low=None, high=None, low_open=False, integer=Fal
     return int(value) if integer else float(value)
 
 
-def build_options(options: dict, allowed: tuple[str, ...], defaults: dict) -> dict:
+def build_options(method, options: dict) -> dict:
+    """The checked options of `method` (a method_table.Method), defaults filled in."""
+    from .method_table import BSP_OPTIONS, COMMON_OPTIONS, MAX_K
+    allowed = method.params
     unknown = sorted(set(options) - set(allowed))
     if unknown:
-        raise TypeError(f"unknown build option(s) {', '.join(unknown)}; "
-                        f"options are {', '.join(allowed)}")
+        raise TypeError(f"unknown build option(s) {', '.join(unknown)} for method "
+                        f"{method.name!r}; its options are {', '.join(allowed)}")
+    defaults = {**COMMON_OPTIONS, **BSP_OPTIONS, **method.defaults}
     o = {**{k: defaults[k] for k in allowed}, **options}
-    return {
+    out = {
         "traversal_cost": number(o["traversal_cost"], "traversal_cost", low=0, low_open=True,
                                  high=1e6),
         "intersect_cost": number(o["intersect_cost"], "intersect_cost", low=0, low_open=True,
@@ -85,6 +89,36 @@ def build_options(options: dict, allowed: tuple[str, ...], defaults: dict) -> di
         "memory_limit_mb": number(o["memory_limit_mb"], "memory_limit_mb", low=0, low_open=True),
         "threads": threads(o["threads"]),
     }
+    if "k" in allowed:
+        k = number(o["k"], "k", integer=True)
+        if k < method.min_k or k > MAX_K:
+            why = " (a '+' method counts the three axes among its K)" if method.plus_axes else ""
+            raise ValueError(f"k must be in {method.min_k}..{MAX_K} for {method.name}{why}, "
+                             f"got {k}")
+        out["k"] = k
+    if "seed" in allowed:
+        out["seed"] = number(o["seed"], "seed", low=0, high=2**63 - 1, integer=True)
+    if "alpha" in allowed:
+        out["alpha"] = number(o["alpha"], "alpha", low=0, high=1e3)
+    if "general_cost" in allowed:
+        out["general_cost"] = number(o["general_cost"], "general_cost", low=0, low_open=True,
+                                     high=1e6)
+    if "rbsp_set" in allowed:
+        kind = o["rbsp_set"]
+        if kind not in ("auto", "spiral", "dop"):
+            raise ValueError(f"rbsp_set must be 'auto', 'spiral' or 'dop', got {kind!r}")
+        if kind == "dop" and out["k"] not in (3, 7, 9, 13):
+            raise ValueError(f"the k-DOP direction sets have K = 3, 7, 9 or 13, got {out['k']}")
+        out["rbsp_set"] = kind
+    if "cluster_iterations" in allowed:
+        out["cluster_iterations"] = number(o["cluster_iterations"], "cluster_iterations", low=1,
+                                           high=500, integer=True)
+        out["cluster_sample"] = number(o["cluster_sample"], "cluster_sample", low=1,
+                                       high=1 << 24, integer=True)
+    if "ize_candidates" in allowed:
+        out["ize_candidates"] = number(o["ize_candidates"], "ize_candidates", low=1,
+                                       high=1 << 20, integer=True)
+    return out
 
 
 def threads(value) -> int:

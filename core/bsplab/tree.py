@@ -49,10 +49,12 @@ class Tree:
             "u": np.empty(n, np.float32),
             "v": np.empty(n, np.float32),
             "steps": np.empty(n, np.uint32),
+            "general_steps": np.empty(n, np.uint32),
             "tests": np.empty(n, np.uint32),
         }
         _core.intersect(self._tree, o, d, lo, hi, out["t"], out["prim"], out["u"], out["v"],
-                        out["steps"], out["tests"], checks.threads(threads), progress)
+                        out["steps"], out["general_steps"], out["tests"],
+                        checks.threads(threads), progress)
         return out
 
     def __repr__(self) -> str:
@@ -61,11 +63,28 @@ class Tree:
                 f"{s['bytes'] / 2**20:.1f} MiB>")
 
 
+def core_options(method, opts: dict):
+    """The checked options as the core's BuildOptions."""
+    o = _core.BuildOptions()
+    for name in ("traversal_cost", "intersect_cost", "empty_bonus", "max_depth", "leaf_size",
+                 "max_duplication", "memory_limit_mb", "threads", "k", "seed", "alpha",
+                 "general_cost", "cluster_iterations", "cluster_sample", "ize_candidates"):
+        if name in opts:
+            setattr(o, name, opts[name])
+    o.strategy = getattr(_core.Strategy, method.strategy)
+    o.plus_axes = method.plus_axes
+    o.kd_nodes = method.kd_nodes
+    if "rbsp_set" in opts:
+        dop = opts["rbsp_set"] == "dop" or (opts["rbsp_set"] == "auto"
+                                            and opts["k"] in (3, 7, 9, 13))
+        o.fixed_set = 1 if dop else 0
+    return o
+
+
 def build(triangles, method: str = "kd", *, progress=None, **options) -> Tree:
     """Builds a tree of `method` over (N, 3, 3) triangles or (vertices, indices)."""
     m = _methods.get(method)
     tris = checks.triangles(triangles)
-    opts = checks.build_options(options, m.params, _methods.COMMON_OPTIONS)
-    builder = getattr(_core, m.builder)
-    core_tree = builder(tris, progress=progress, **opts)
+    opts = checks.build_options(m, options)
+    core_tree = _core.build(tris, m.builder, core_options(m, opts), progress)
     return Tree(core_tree, method, opts)

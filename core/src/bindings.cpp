@@ -4,10 +4,14 @@
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/unique_ptr.h>
+#include <nanobind/stl/array.h>
+#include <nanobind/stl/vector.h>
 
 #include <cstring>
 #include <memory>
 
+#include "bsp_build.hpp"
+#include "cell.hpp"
 #include "kd_build.hpp"
 #include "traverse.hpp"
 
@@ -22,30 +26,23 @@ using FloatIn = nb::ndarray<const float, nb::ndim<1>, nb::c_contig, nb::device::
 template <class T>
 using Out = nb::ndarray<T, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 
-std::unique_ptr<bsp::KdTree> build_kd(TriArray tris, float traversal_cost, float intersect_cost,
-                                      float empty_bonus, int max_depth, int leaf_size,
-                                      float max_duplication, double memory_limit_mb, int threads,
-                                      bsp::Progress* progress) {
-    bsp::BuildOptions opt;
-    opt.traversal_cost = traversal_cost;
-    opt.intersect_cost = intersect_cost;
-    opt.empty_bonus = empty_bonus;
-    opt.max_depth = max_depth;
-    opt.leaf_size = leaf_size;
-    opt.max_duplication = max_duplication;
-    opt.memory_limit_mb = memory_limit_mb;
-    opt.threads = threads;
+std::unique_ptr<bsp::Tree> build(TriArray tris, const std::string& builder,
+                                 const bsp::BuildOptions& opt, bsp::Progress* progress) {
+    if (builder != "kd" && builder != "bsp") throw std::invalid_argument("unknown builder " + builder);
     const size_t n = tris.shape(0);
     const float* src = tris.data();
     nb::gil_scoped_release release;
     std::vector<bsp::Triangle> copy(n);
     std::memcpy(static_cast<void*>(copy.data()), src, n * sizeof(bsp::Triangle));
-    return std::make_unique<bsp::KdTree>(bsp::build_kd_tree(std::move(copy), opt, progress));
+    if (builder == "kd")
+        return std::make_unique<bsp::Tree>(bsp::build_kd_tree(std::move(copy), opt, progress));
+    return std::make_unique<bsp::Tree>(bsp::build_bsp_tree(std::move(copy), opt, progress));
 }
 
-void intersect(const bsp::KdTree& tree, Vec3Array origins, Vec3Array directions, FloatIn tmin,
+void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, FloatIn tmin,
                FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u, Out<float> v,
-               Out<uint32_t> steps, Out<uint32_t> tests, int threads, bsp::Progress* progress) {
+               Out<uint32_t> steps, Out<uint32_t> general_steps, Out<uint32_t> tests, int threads,
+               bsp::Progress* progress) {
     const size_t n = origins.shape(0);
     auto check = [n](size_t m, const char* what) {
         if (m != n) throw std::invalid_argument(std::string(what) + " has the wrong length");
@@ -56,6 +53,7 @@ void intersect(const bsp::KdTree& tree, Vec3Array origins, Vec3Array directions,
     check(u.shape(0), "u");
     check(v.shape(0), "v");
     check(steps.shape(0), "steps");
+    check(general_steps.shape(0), "general_steps");
     check(tests.shape(0), "tests");
     if (tmin.shape(0) != 1) check(tmin.shape(0), "tmin");
     if (tmax.shape(0) != 1) check(tmax.shape(0), "tmax");
@@ -67,12 +65,13 @@ void intersect(const bsp::KdTree& tree, Vec3Array origins, Vec3Array directions,
     rays.tmin_stride = tmin.shape(0) == 1 ? 0 : 1;
     rays.tmax_stride = tmax.shape(0) == 1 ? 0 : 1;
     rays.count = n;
-    bsp::HitBatch hits{t.data(), prim.data(), u.data(), v.data(), steps.data(), tests.data()};
+    bsp::HitBatch hits{t.data(),     prim.data(),          u.data(),    v.data(),
+                       steps.data(), general_steps.data(), tests.data()};
     nb::gil_scoped_release release;
     bsp::intersect(tree, rays, hits, threads, progress);
 }
 
-nb::dict stats(const bsp::KdTree& tree) {
+nb::dict stats(const bsp::Tree& tree) {
     const bsp::BuildStats& s = tree.stats;
     nb::dict d;
     d["build_seconds"] = s.build_seconds;
@@ -80,8 +79,8 @@ nb::dict stats(const bsp::KdTree& tree) {
     d["degenerate"] = s.degenerate;
     d["nodes"] = s.nodes;
     d["interior_nodes"] = s.interior_nodes;
-    d["kd_nodes"] = s.interior_nodes;
-    d["general_nodes"] = 0;
+    d["kd_nodes"] = s.kd_nodes;
+    d["general_nodes"] = s.general_nodes;
     d["leaves"] = s.leaves;
     d["empty_leaves"] = s.empty_leaves;
     d["max_depth"] = s.max_depth;
@@ -94,14 +93,25 @@ nb::dict stats(const bsp::KdTree& tree) {
     d["mean_leaf_size"] = full ? double(s.references) / double(full) : 0.0;
     d["max_leaf_size"] = s.max_leaf_size;
     d["bytes"] = s.bytes;
-    d["node_bytes"] = uint64_t(tree.nodes.size() * sizeof(bsp::KdNode));
+    d["node_bytes"] = uint64_t(tree.nodes.size() * sizeof(bsp::Node));
+    d["plane_bytes"] = uint64_t(tree.planes.size() * sizeof(bsp::Plane));
     d["sah_cost"] = s.sah_cost;
+    nb::list planes, dirs;
+    for (const bsp::LevelStats& l : s.levels) {
+        planes.append(l.planes);
+        dirs.append(l.directions);
+    }
+    d["level_planes"] = planes;
+    d["level_directions"] = dirs;
     return d;
 }
 
-nb::bytes node_bytes(const bsp::KdTree& tree) {
-    return nb::bytes(reinterpret_cast<const char*>(tree.nodes.data()),
-                     tree.nodes.size() * sizeof(bsp::KdNode));
+nb::bytes node_bytes(const bsp::Tree& tree) {
+    std::string out(reinterpret_cast<const char*>(tree.nodes.data()),
+                    tree.nodes.size() * sizeof(bsp::Node));
+    out.append(reinterpret_cast<const char*>(tree.planes.data()),
+               tree.planes.size() * sizeof(bsp::Plane));
+    return nb::bytes(out.data(), out.size());
 }
 
 }  // namespace
@@ -119,26 +129,94 @@ NB_MODULE(_core, m) {
         .def("cancel", &bsp::Progress::cancel, "Ask the running work to stop.")
         .def("reset", &bsp::Progress::reset);
 
-    nb::class_<bsp::KdTree>(m, "KdTree")
+    nb::enum_<bsp::Strategy>(m, "Strategy")
+        .value("axes", bsp::Strategy::Axes)
+        .value("fixed", bsp::Strategy::Fixed)
+        .value("random", bsp::Strategy::Random)
+        .value("normals", bsp::Strategy::Normals)
+        .value("clustered", bsp::Strategy::Clustered)
+        .value("ize", bsp::Strategy::Ize);
+
+    nb::class_<bsp::BuildOptions>(m, "BuildOptions")
+        .def(nb::init<>())
+        .def_rw("traversal_cost", &bsp::BuildOptions::traversal_cost)
+        .def_rw("intersect_cost", &bsp::BuildOptions::intersect_cost)
+        .def_rw("empty_bonus", &bsp::BuildOptions::empty_bonus)
+        .def_rw("max_depth", &bsp::BuildOptions::max_depth)
+        .def_rw("leaf_size", &bsp::BuildOptions::leaf_size)
+        .def_rw("max_duplication", &bsp::BuildOptions::max_duplication)
+        .def_rw("memory_limit_mb", &bsp::BuildOptions::memory_limit_mb)
+        .def_rw("threads", &bsp::BuildOptions::threads)
+        .def_rw("strategy", &bsp::BuildOptions::strategy)
+        .def_rw("k", &bsp::BuildOptions::k)
+        .def_rw("plus_axes", &bsp::BuildOptions::plus_axes)
+        .def_rw("kd_nodes", &bsp::BuildOptions::kd_nodes)
+        .def_rw("fixed_set", &bsp::BuildOptions::fixed_set)
+        .def_rw("seed", &bsp::BuildOptions::seed)
+        .def_rw("alpha", &bsp::BuildOptions::alpha)
+        .def_rw("general_cost", &bsp::BuildOptions::general_cost)
+        .def_rw("cluster_iterations", &bsp::BuildOptions::cluster_iterations)
+        .def_rw("cluster_sample", &bsp::BuildOptions::cluster_sample)
+        .def_rw("ize_candidates", &bsp::BuildOptions::ize_candidates);
+
+    nb::class_<bsp::Tree>(m, "Tree")
         .def("stats", &stats)
-        .def("node_bytes", &node_bytes, "The raw node array (for reproducibility checks).")
+        .def("node_bytes", &node_bytes, "The raw node and plane arrays (reproducibility checks).")
         .def_prop_ro(
             "triangles",
-            [](const bsp::KdTree& t) {
+            [](const bsp::Tree& t) {
                 return nb::ndarray<const float, nb::numpy, nb::shape<-1, 3, 3>>(
                     reinterpret_cast<const float*>(t.triangles.data()), {t.triangles.size(), 3, 3},
                     nb::handle());
             },
             nb::rv_policy::reference_internal)
-        .def_prop_ro("bounds", [](const bsp::KdTree& t) {
+        .def("arrays",
+             [](const bsp::Tree& t) {
+                 // Copies of the raw arrays, for inspection and drawing.
+                 nb::dict d;
+                 d["nodes"] = nb::bytes(reinterpret_cast<const char*>(t.nodes.data()),
+                                        t.nodes.size() * sizeof(bsp::Node));
+                 d["refs"] = nb::bytes(reinterpret_cast<const char*>(t.refs.data()),
+                                       t.refs.size() * sizeof(uint32_t));
+                 d["planes"] = nb::bytes(reinterpret_cast<const char*>(t.planes.data()),
+                                         t.planes.size() * sizeof(bsp::Plane));
+                 return d;
+             })
+        .def_prop_ro("bounds", [](const bsp::Tree& t) {
             return nb::make_tuple(nb::make_tuple(t.bounds.lo.x, t.bounds.lo.y, t.bounds.lo.z),
                                   nb::make_tuple(t.bounds.hi.x, t.bounds.hi.y, t.bounds.hi.z));
         });
 
-    m.def("build_kd", &build_kd, "triangles"_a, "traversal_cost"_a, "intersect_cost"_a,
-          "empty_bonus"_a, "max_depth"_a, "leaf_size"_a, "max_duplication"_a,
-          "memory_limit_mb"_a, "threads"_a, "progress"_a.none());
+    m.def(
+        "cell_areas",
+        [](std::array<float, 3> lo, std::array<float, 3> hi, std::vector<std::array<double, 4>> cuts,
+           std::array<double, 3> u, std::vector<double> ts) {
+            // A box cut by planes (keeping the part below each), then the areas
+            // below/above u.x = t for each t: directly and from the table.
+            bsp::Box b;
+            b.lo = bsp::Vec3(lo[0], lo[1], lo[2]);
+            b.hi = bsp::Vec3(hi[0], hi[1], hi[2]);
+            bsp::Cell c = bsp::Cell::from_box(b);
+            for (auto& p : cuts) {
+                bsp::Cell below, above;
+                c.split(bsp::Vec3d(p[0], p[1], p[2]), p[3], below, above);
+                c = below;
+            }
+            const bsp::Vec3d ud(u[0], u[1], u[2]);
+            bsp::CellProjection direct(c, ud), table(c, ud);
+            table.tabulate();
+            nb::list out;
+            for (double t : ts) {
+                double b0, a0, b1, a1;
+                direct.areas_at(t, b0, a0);
+                table.eval(t, b1, a1);
+                out.append(nb::make_tuple(b0, a0, b1, a1));
+            }
+            return nb::make_tuple(c.area(), out);
+        },
+        "lo"_a, "hi"_a, "cuts"_a, "u"_a, "ts"_a, "Surface areas of cut cells (for tests).");
+    m.def("build", &build, "triangles"_a, "builder"_a, "options"_a, "progress"_a.none());
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
-          "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a, "tests"_a, "threads"_a,
+          "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a, "general_steps"_a, "tests"_a, "threads"_a,
           "progress"_a.none());
 }

@@ -11,8 +11,8 @@
 #include <cmath>
 #include <future>
 #include <memory>
-#include <new>
 
+#include "build_tree.hpp"
 #include "clip.hpp"
 #include "parallel.hpp"
 
@@ -57,14 +57,6 @@ struct Split {
     bool planar_left = false;
     float cost = kInf;
     uint32_t n_left = 0, n_right = 0;
-};
-
-// Intermediate pointer tree; flattened into the 8-byte node array at the end.
-struct BuildNode {
-    int axis = -1;  // -1: leaf
-    float split = 0;
-    std::unique_ptr<BuildNode> child[2];
-    std::vector<uint32_t> refs;
 };
 
 // Nodes with more triangles than this split their three axes in parallel.
@@ -240,13 +232,14 @@ private:
         }
     }
 
-    std::unique_ptr<BuildNode> make_leaf(const NodeEvents& ev, int depth) const {
+    std::unique_ptr<BuildNode> make_leaf(const NodeEvents& ev, const Box& box, int depth) const {
         auto node = std::make_unique<BuildNode>();
+        node->area = box.area();
         node->refs.reserve(ev.count);
         for (const Event& e : ev.axis[0])
             if (e.type() != kEnd) node->refs.push_back(e.tri());
         std::sort(node->refs.begin(), node->refs.end());
-        if (progress_ && depth < 52) progress_->add(Progress::kScale >> depth);
+        report_leaf(progress_, depth);
         return node;
     }
 
@@ -254,11 +247,11 @@ private:
                                           std::vector<uint8_t>& side) {
         if (progress_) progress_->check();
         const float leaf_cost = opt_.intersect_cost * float(ev.count);
-        if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth) return make_leaf(ev, depth);
+        if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth) return make_leaf(ev, box, depth);
         const Split s = find_split(ev, box);
-        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, depth);
+        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, box, depth);
         const double refs = double(s.n_left) + double(s.n_right);
-        if (refs > budget) return make_leaf(ev, depth);
+        if (refs > budget) return make_leaf(ev, box, depth);
 
         Box lbox = box, rbox = box;
         lbox.hi[s.axis] = s.pos;
@@ -273,8 +266,9 @@ private:
         const double rbudget = budget - lbudget;
 
         auto node = std::make_unique<BuildNode>();
-        node->axis = s.axis;
+        node->kind = s.axis;
         node->split = s.pos;
+        node->area = box.area();
         if (depth < spawn_depth_ && ev.count > 4096) {
             auto right_task = std::async(std::launch::async, [&, r = std::move(right)]() mutable {
                 return build(std::move(r), rbox, depth + 1, rbudget);
@@ -289,118 +283,26 @@ private:
     }
 };
 
-struct Flattener {
-    KdTree& tree;
-
-    uint32_t emit(const BuildNode& n) {
-        if (tree.nodes.size() >= kMaxNodes) throw std::length_error("kd-tree exceeds 2^30 nodes");
-        const uint32_t index = uint32_t(tree.nodes.size());
-        if (n.axis < 0) {
-            const uint32_t count = uint32_t(n.refs.size());
-            if (count == 1) {
-                tree.nodes.push_back(KdNode::leaf(n.refs[0], 1));
-            } else {
-                tree.nodes.push_back(KdNode::leaf(uint32_t(tree.refs.size()), count));
-                tree.refs.insert(tree.refs.end(), n.refs.begin(), n.refs.end());
-            }
-            return index;
-        }
-        tree.nodes.push_back(KdNode());
-        emit(*n.child[0]);
-        const uint32_t above = emit(*n.child[1]);
-        tree.nodes[index] = KdNode::interior(n.axis, n.split, above);
-        return index;
-    }
-};
-
-bool is_degenerate(const Triangle& t) {
-    const Vec3 n = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
-    return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
-}
-
-struct StatsWalker {
-    const KdTree& tree;
-    BuildStats& st;
-    double leaf_depth_sum = 0;
-    double sah = 0;
-    float inv_root_area = 0;
-
-    void walk(uint32_t i, const Box& box, int depth) {
-        const KdNode& n = tree.nodes[i];
-        const float p = box.area() * inv_root_area;
-        st.max_depth = std::max(st.max_depth, depth);
-        if (n.is_leaf()) {
-            ++st.leaves;
-            const uint32_t c = n.count();
-            if (c == 0) ++st.empty_leaves;
-            st.references += c;
-            st.max_leaf_size = std::max<uint64_t>(st.max_leaf_size, c);
-            leaf_depth_sum += depth;
-            sah += double(p) * tree.options.intersect_cost * c;
-            return;
-        }
-        ++st.interior_nodes;
-        sah += double(p) * tree.options.traversal_cost;
-        Box lo = box, hi = box;
-        lo.hi[n.axis()] = n.split;
-        hi.lo[n.axis()] = n.split;
-        walk(i + 1, lo, depth + 1);
-        walk(n.above_child(), hi, depth + 1);
-    }
-};
-
-void fill_stats(KdTree& tree) {
-    BuildStats& st = tree.stats;
-    StatsWalker w{tree, st};
-    const float root_area = tree.bounds.area();
-    w.inv_root_area = root_area > 0 ? 1.0f / root_area : 0.0f;
-    w.walk(0, tree.bounds, 0);
-    st.nodes = tree.nodes.size();
-    st.mean_leaf_depth = st.leaves ? w.leaf_depth_sum / double(st.leaves) : 0.0;
-    st.sah_cost = w.sah;
-    st.bytes = tree.nodes.size() * sizeof(KdNode) + tree.refs.size() * sizeof(uint32_t) +
-               tree.triangles.size() * sizeof(Triangle);
-}
-
 }  // namespace
 
-double sah_cost(const KdTree& tree) { return tree.stats.sah_cost; }
-
-KdTree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
-                     Progress* progress) {
+Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
+                   Progress* progress) {
     const auto t0 = std::chrono::steady_clock::now();
-    KdTree tree;
+    Tree tree;
     tree.triangles = std::move(triangles);
-    tree.options = options;
+    const Prepared prep = prepare(tree, options);
     const auto& tris = tree.triangles;
-    const uint32_t n = uint32_t(tris.size());
-
     NodeEvents root;
-    std::vector<uint8_t> valid(n);
-    for (uint32_t i = 0; i < n; ++i) {
-        valid[i] = !is_degenerate(tris[i]);
-        if (valid[i]) {
-            tree.bounds.extend(tris[i].bounds());
-            ++root.count;
-        }
-    }
-    tree.stats.triangles = n;
-    tree.stats.degenerate = n - root.count;
-    int depth_limit = options.max_depth > 0
-                          ? options.max_depth
-                          : int(std::lround(8.0 + 1.3 * std::log2(std::max<double>(1, root.count))));
-    tree.options.max_depth = depth_limit = std::min(depth_limit, 64);
-    tree.stats.depth_limit = depth_limit;
+    root.count = uint32_t(prep.live.size());
 
     const int threads = resolve_threads(options.threads);
     // The three axes' event lists are independent: fill and sort them in parallel.
     parallel_for(3, 1, threads, [&](size_t k0, size_t k1) {
         for (size_t k = k0; k < k1; ++k) {
             EventList& e = root.axis[k];
-            e.reserve(2 * size_t(root.count));
-            for (uint32_t i = 0; i < n; ++i) {
-                if (!valid[i]) continue;
-                Box b = tris[i].bounds();
+            e.reserve(2 * prep.live.size());
+            for (uint32_t i : prep.live) {
+                const Box b = tris[i].bounds();
                 if (b.lo[k] == b.hi[k]) {
                     e.push_back({b.lo[k], i << 2 | kPlanar});
                 } else {
@@ -417,13 +319,9 @@ KdTree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& option
         root_node = std::make_unique<BuildNode>();
     } else {
         KdBuilder builder(tris, tree.options, progress, threads);
-        const double budget = std::max(1.0, double(options.max_duplication)) * double(root.count);
-        root_node = builder.build(std::move(root), tree.bounds, 0, budget);
+        root_node = builder.build(std::move(root), tree.bounds, 0, prep.ref_budget);
     }
-    Flattener{tree}.emit(*root_node);
-    root_node.reset();
-    fill_stats(tree);
-    if (double(tree.stats.bytes) > options.memory_limit_mb * 1024.0 * 1024.0) throw std::bad_alloc();
+    finish(tree, *root_node);
     tree.stats.build_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return tree;

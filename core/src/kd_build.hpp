@@ -2,7 +2,7 @@
 #pragma once
 #include <vector>
 
-#include "kd_tree.hpp"
+#include "tree.hpp"
 #include "progress.hpp"
 
 namespace bsp {
@@ -11,10 +11,7 @@ namespace bsp {
 // triangles keep their index but are left out of the tree, so they are never
 // hit. Throws Cancelled when `progress` is cancelled, std::bad_alloc when the
 // tree would exceed options.memory_limit_mb.
-KdTree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
-                     Progress* progress = nullptr);
-
-// The SAH cost of a finished tree, relative to a ray hitting the root box.
-double sah_cost(const KdTree& tree);
+Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
+                   Progress* progress = nullptr);
 
 }  // namespace bsp

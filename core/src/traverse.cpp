@@ -1,4 +1,4 @@
-// Front-to-back kd traversal with early exit (pbrt-v3 / Havran style),
+// Front-to-back traversal of kd and general nodes with early exit (pbrt-v3 / Havran style),
 // a small per-ray mailbox, and the watertight triangle test.
 #include "traverse.hpp"
 
@@ -56,8 +56,8 @@ struct StackEntry {
     float tmin, tmax;
 };
 
-void trace_one(const KdTree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
-               Closest& hit, uint32_t& steps, uint32_t& tests) {
+void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+               Closest& hit, uint32_t& steps, uint32_t& general_steps, uint32_t& tests) {
     hit.t = tmax;
     const Vec3 inv(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
     float t0 = tmin, t1 = tmax;
@@ -67,26 +67,43 @@ void trace_one(const KdTree& tree, const Vec3& o, const Vec3& d, float tmin, flo
     const float org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
     const float idir[3] = {inv.x, inv.y, inv.z};
     const ShearedRay sray(o, d);
-    const KdNode* nodes = tree.nodes.data();
+    const Node* nodes = tree.nodes.data();
+    const Plane* planes = tree.planes.data();
     const uint32_t* refs = tree.refs.data();
     const Triangle* tris = tree.triangles.data();
     Mailbox mailbox;
     StackEntry stack[72];
     int top = 0;
     uint32_t index = 0;
-    uint32_t n_steps = 0, n_tests = 0;
+    uint32_t n_steps = 0, n_general = 0, n_tests = 0;
 
     for (;;) {
         if (hit.t < t0) break;  // everything left lies beyond the closest hit
-        const KdNode node = nodes[index];
+        const Node node = nodes[index];
         ++n_steps;
         if (!node.is_leaf()) {
-            const int axis = node.axis();
-            const float tplane = (node.split - org[axis]) * idir[axis];
-            const bool below_first =
-                org[axis] < node.split || (org[axis] == node.split && dir[axis] <= 0.0f);
-            const uint32_t first = below_first ? index + 1 : node.above_child();
-            const uint32_t second = below_first ? node.above_child() : index + 1;
+            // Both kinds reduce to: the plane's distance along the ray, and
+            // which child holds the origin.
+            float tplane;
+            bool below_first;
+            uint32_t above_child;
+            if (node.is_kd()) {
+                const int axis = node.axis();
+                tplane = (node.split - org[axis]) * idir[axis];
+                below_first =
+                    org[axis] < node.split || (org[axis] == node.split && dir[axis] <= 0.0f);
+                above_child = node.kd_above();
+            } else {
+                ++n_general;
+                const Plane& p = planes[node.first];
+                const float no = p.nx * org[0] + p.ny * org[1] + p.nz * org[2];
+                const float nd = p.nx * dir[0] + p.ny * dir[1] + p.nz * dir[2];
+                tplane = (p.d - no) / nd;
+                below_first = no < p.d || (no == p.d && nd <= 0.0f);
+                above_child = node.general_above();
+            }
+            const uint32_t first = below_first ? index + 1 : above_child;
+            const uint32_t second = below_first ? above_child : index + 1;
             if (tplane > t1 || tplane <= 0.0f) {
                 index = first;
             } else if (tplane < t0) {
@@ -123,12 +140,13 @@ void trace_one(const KdTree& tree, const Vec3& o, const Vec3& d, float tmin, flo
         t1 = stack[top].tmax;
     }
     steps = n_steps;
+    general_steps = n_general;
     tests = n_tests;
 }
 
 }  // namespace
 
-void intersect(const KdTree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
                Progress* progress) {
     constexpr size_t kChunk = 1024;
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
@@ -138,16 +156,17 @@ void intersect(const KdTree& tree, const RayBatch& rays, HitBatch& hits, int thr
             const float* o = rays.origins + 3 * i;
             const float* d = rays.directions + 3 * i;
             Closest c;
-            uint32_t steps = 0, tests = 0;
+            uint32_t steps = 0, general = 0, tests = 0;
             trace_one(tree, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]),
                       rays.tmin[i * rays.tmin_stride], rays.tmax[i * rays.tmax_stride], c, steps,
-                      tests);
+                      general, tests);
             const bool hit = c.prim >= 0;
             hits.t[i] = hit ? c.t : kInf;
             hits.prim[i] = c.prim;
             hits.u[i] = hit ? c.u : 0.0f;
             hits.v[i] = hit ? c.v : 0.0f;
             hits.steps[i] = steps;
+            hits.general_steps[i] = general;
             hits.tests[i] = tests;
         }
         if (progress) progress->add(units_per_ray * (end - begin));

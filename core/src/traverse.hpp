@@ -1,9 +1,9 @@
-// Closest-hit traversal of the kd-tree over batches of rays.
+// Closest-hit traversal of kd and general BSP trees over batches of rays.
 #pragma once
 #include <cstddef>
 #include <cstdint>
 
-#include "kd_tree.hpp"
+#include "tree.hpp"
 #include "progress.hpp"
 
 namespace bsp {
@@ -23,11 +23,12 @@ struct HitBatch {
     int32_t* prim;   // -1 on miss
     float* u;
     float* v;
-    uint32_t* steps;  // nodes visited
-    uint32_t* tests;  // ray-triangle tests performed
+    uint32_t* steps;          // nodes visited, of every kind
+    uint32_t* general_steps;  // general (plane) nodes among them
+    uint32_t* tests;          // ray-triangle tests performed
 };
 
-void intersect(const KdTree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
                Progress* progress = nullptr);
 
 }  // namespace bsp

@@ -1,0 +1,128 @@
+#include "build_tree.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <new>
+#include <stdexcept>
+#include <tuple>
+
+namespace bsp {
+namespace {
+
+bool is_degenerate(const Triangle& t) {
+    const Vec3 n = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
+    return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
+}
+
+using Direction = std::tuple<float, float, float>;
+
+struct StatsWalker {
+    const BuildOptions& opt;
+    BuildStats& st;
+    double inv_root_area = 0;
+    double leaf_depth_sum = 0;
+    std::vector<std::vector<Direction>> level_dirs;
+
+    void walk(const BuildNode& n, int depth) {
+        const double p = double(n.area) * inv_root_area;
+        st.max_depth = std::max(st.max_depth, depth);
+        if (n.kind < 0) {
+            ++st.leaves;
+            const uint64_t c = n.refs.size();
+            if (c == 0) ++st.empty_leaves;
+            st.references += c;
+            st.max_leaf_size = std::max(st.max_leaf_size, c);
+            leaf_depth_sum += depth;
+            st.sah_cost += p * opt.intersect_cost * double(c);
+            return;
+        }
+        ++st.interior_nodes;
+        if (level_dirs.size() <= size_t(depth)) level_dirs.resize(depth + 1);
+        if (n.kind < 3) {
+            ++st.kd_nodes;
+            st.sah_cost += p * opt.traversal_cost;
+            const float e[3] = {float(n.kind == 0), float(n.kind == 1), float(n.kind == 2)};
+            level_dirs[depth].emplace_back(e[0], e[1], e[2]);
+        } else {
+            ++st.general_nodes;
+            st.sah_cost += p * (opt.kd_nodes ? opt.general_cost : opt.traversal_cost);
+            level_dirs[depth].emplace_back(n.plane.nx, n.plane.ny, n.plane.nz);
+        }
+        walk(*n.child[0], depth + 1);
+        walk(*n.child[1], depth + 1);
+    }
+};
+
+struct Flattener {
+    Tree& tree;
+
+    uint32_t emit(const BuildNode& n) {
+        if (tree.nodes.size() >= kMaxNodes) throw std::length_error("tree exceeds 2^29 nodes");
+        const uint32_t index = uint32_t(tree.nodes.size());
+        if (n.kind < 0) {
+            const uint32_t count = uint32_t(n.refs.size());
+            if (count == 1) {
+                tree.nodes.push_back(Node::leaf(n.refs[0], 1));
+            } else {
+                tree.nodes.push_back(Node::leaf(uint32_t(tree.refs.size()), count));
+                tree.refs.insert(tree.refs.end(), n.refs.begin(), n.refs.end());
+            }
+            return index;
+        }
+        tree.nodes.push_back(Node());
+        emit(*n.child[0]);
+        const uint32_t above = emit(*n.child[1]);
+        if (n.kind < 3) {
+            tree.nodes[index] = Node::kd(n.kind, n.split, above);
+        } else {
+            tree.nodes[index] = Node::general(uint32_t(tree.planes.size()), above);
+            tree.planes.push_back(n.plane);
+        }
+        return index;
+    }
+};
+
+}  // namespace
+
+Prepared prepare(Tree& tree, const BuildOptions& options) {
+    Prepared p;
+    tree.options = options;
+    const uint32_t n = uint32_t(tree.triangles.size());
+    for (uint32_t i = 0; i < n; ++i) {
+        if (is_degenerate(tree.triangles[i])) continue;
+        p.live.push_back(i);
+        tree.bounds.extend(tree.triangles[i].bounds());
+    }
+    tree.stats.triangles = n;
+    tree.stats.degenerate = n - p.live.size();
+    int limit = options.max_depth > 0
+                    ? options.max_depth
+                    : int(std::lround(8.0 + 1.3 * std::log2(std::max<double>(1, p.live.size()))));
+    p.depth_limit = std::min(limit, 64);
+    tree.options.max_depth = p.depth_limit;
+    tree.stats.depth_limit = p.depth_limit;
+    p.ref_budget = std::max(1.0, double(options.max_duplication)) * double(p.live.size());
+    return p;
+}
+
+void finish(Tree& tree, const BuildNode& root) {
+    BuildStats& st = tree.stats;
+    StatsWalker w{tree.options, st};
+    w.inv_root_area = root.area > 0 ? 1.0 / double(root.area) : 0.0;
+    w.walk(root, 0);
+    st.mean_leaf_depth = st.leaves ? w.leaf_depth_sum / double(st.leaves) : 0.0;
+    for (auto& dirs : w.level_dirs) {
+        LevelStats ls;
+        ls.planes = dirs.size();
+        std::sort(dirs.begin(), dirs.end());
+        ls.directions = uint64_t(std::unique(dirs.begin(), dirs.end()) - dirs.begin());
+        st.levels.push_back(ls);
+    }
+    Flattener{tree}.emit(root);
+    st.nodes = tree.nodes.size();
+    st.bytes = tree.nodes.size() * sizeof(Node) + tree.refs.size() * sizeof(uint32_t) +
+               tree.planes.size() * sizeof(Plane) + tree.triangles.size() * sizeof(Triangle);
+    if (double(st.bytes) > tree.options.memory_limit_mb * 1024.0 * 1024.0) throw std::bad_alloc();
+}
+
+}  // namespace bsp

@@ -1,0 +1,40 @@
+// What every builder shares: input preparation, the intermediate pointer
+// tree, and the finishing pass (statistics, flattening to the compact layout).
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "progress.hpp"
+#include "tree.hpp"
+
+namespace bsp {
+
+struct BuildNode {
+    int kind = -1;  // -1 leaf, 0..2 kd axis, 3 general plane
+    float split = 0;
+    Plane plane{};  // general nodes: the plane n.x = d
+    float area = 0; // surface area of the node's cell (for the SAH cost stat)
+    std::unique_ptr<BuildNode> child[2];
+    std::vector<uint32_t> refs;
+};
+
+struct Prepared {
+    std::vector<uint32_t> live;  // indices of the non-degenerate triangles
+    int depth_limit = 0;
+    double ref_budget = 0;       // references allowed in the whole tree
+};
+
+// Copies the options, counts degenerate triangles, sets bounds and limits.
+Prepared prepare(Tree& tree, const BuildOptions& options);
+
+// Fills tree.stats from the pointer tree, flattens it into tree.nodes/refs/
+// planes, and enforces the memory limit (std::bad_alloc).
+void finish(Tree& tree, const BuildNode& root);
+
+// Adds a leaf's share to the build progress: a leaf at depth d completes
+// 2^-d of a binary tree, so the shares of all leaves sum to one.
+inline void report_leaf(Progress* progress, int depth) {
+    if (progress && depth < 52) progress->add(Progress::kScale >> depth);
+}
+
+}  // namespace bsp

@@ -1,0 +1,173 @@
+"""The BSP family: the method table, options, ^Kd nodes, per-level
+statistics, seeds, and the cells' surface areas."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import bsplab
+from bsplab import _core, scenes
+
+METHODS = bsplab.methods()
+FAMILY = [m for m in METHODS if m != "kd"]
+
+
+@pytest.fixture(scope="module")
+def room():
+    return scenes.generate("room")
+
+
+def test_the_table_names_the_whole_family():
+    for name in ("kd", "rbsp", "rbsp+kd", "bsp_random", "bsp_random+", "bsp_random+kd",
+                 "bsp_wn", "bsp_wn+", "bsp_wn+kd", "bsp_cn", "bsp_cn+", "bsp_cn+kd",
+                 "bsp_ize", "bsp_ize+kd"):
+        assert name in METHODS, name
+    for name, info in METHODS.items():
+        assert info["kd_nodes"] == name.endswith("+kd")
+        if "k" in info["params"]:
+            assert info["min_k"] == (3 if info["plus_axes"] else 1)
+
+
+@pytest.mark.parametrize("method", FAMILY)
+def test_node_kinds_follow_the_kd_variant(room, method):
+    s = bsplab.build(room, method=method).stats
+    assert s["interior_nodes"] == s["kd_nodes"] + s["general_nodes"]
+    if METHODS[method]["kd_nodes"]:
+        assert s["kd_nodes"] > 0  # the room is full of axis-aligned planes
+    else:
+        assert s["kd_nodes"] == 0 and s["general_nodes"] > 0
+    assert s["plane_bytes"] == 16 * s["general_nodes"]
+    # Nodes, planes, triangles and the reference array (one-triangle leaves
+    # keep their triangle inline, so at most one reference per leaf entry).
+    rest = s["bytes"] - 8 * s["nodes"] - 16 * s["general_nodes"] - 36 * s["triangles"]
+    assert 0 <= rest <= 4 * s["references"] and rest % 4 == 0
+
+
+@pytest.mark.parametrize("method", ["kd", "rbsp", "bsp_random", "bsp_wn+kd", "bsp_ize"])
+def test_level_statistics(room, method):
+    s = bsplab.build(room, method=method).stats
+    planes, dirs = s["level_planes"], s["level_directions"]
+    assert sum(planes) == s["interior_nodes"]
+    assert len(planes) == len(dirs) and len(planes) <= s["max_depth"]
+    assert all(0 < d <= p for p, d in zip(planes, dirs))
+    assert planes[0] == 1
+    if method == "kd":
+        assert max(dirs) <= 3
+    if method == "rbsp":
+        assert max(dirs) <= 13  # the fixed set
+    if method == "bsp_random":
+        # Fresh random directions at every node: nearly all distinct.
+        assert sum(dirs) > 0.9 * sum(planes)
+
+
+def test_rbsp_uses_its_fixed_set(room):
+    dop = bsplab.build(room, method="rbsp", k=7, rbsp_set="dop").stats
+    spiral = bsplab.build(room, method="rbsp", k=7, rbsp_set="spiral").stats
+    assert max(dop["level_directions"]) <= 7 and max(spiral["level_directions"]) <= 7
+    a = bsplab.build(room, method="rbsp", k=7, rbsp_set="dop").node_bytes()
+    assert a != bsplab.build(room, method="rbsp", k=7, rbsp_set="spiral").node_bytes()
+
+
+@pytest.mark.parametrize("method", ["bsp_random", "bsp_wn+", "bsp_cn+kd", "bsp_ize"])
+def test_seed_decides_the_tree(room, method):
+    a = bsplab.build(room, method=method, seed=1).node_bytes()
+    assert a == bsplab.build(room, method=method, seed=1).node_bytes()
+    assert a != bsplab.build(room, method=method, seed=2).node_bytes()
+
+
+def test_more_directions_find_cheaper_trees():
+    tris = scenes.generate("spheres")
+    costs = [bsplab.build(tris, method="bsp_random+", k=k).stats["sah_cost"] for k in (3, 9)]
+    assert costs[1] < costs[0]
+
+
+def test_kd_variant_costs_change_the_tree(room):
+    cheap = bsplab.build(room, method="bsp_wn+kd", alpha=0.0, general_cost=1.0).stats
+    dear = bsplab.build(room, method="bsp_wn+kd", alpha=10.0, general_cost=100.0).stats
+    assert dear["general_nodes"] < cheap["general_nodes"]
+
+
+@pytest.mark.parametrize("method, options, exc, words", [
+    ("bsp_wn", {"k": 0}, ValueError, "k must be"),
+    ("bsp_wn", {"k": 65}, ValueError, "k must be"),
+    ("bsp_wn+", {"k": 2}, ValueError, "axes"),
+    ("bsp_cn+kd", {"k": 1.5}, ValueError, "whole"),
+    ("bsp_magic", {}, ValueError, "unknown method"),
+    ("bsp_wn+kd", {"alpha": -0.1}, ValueError, "alpha"),
+    ("bsp_wn+kd", {"general_cost": 0}, ValueError, "general_cost"),
+    ("rbsp", {"k": 5, "rbsp_set": "dop"}, ValueError, "K = 3, 7, 9 or 13"),
+    ("rbsp", {"rbsp_set": "cube"}, ValueError, "rbsp_set"),
+    ("kd", {"k": 4}, TypeError, "unknown build option"),
+    ("bsp_wn", {"alpha": 0.1}, TypeError, "unknown build option"),
+    ("bsp_random", {"seed": -1}, ValueError, "seed"),
+])
+def test_bad_bsp_options(room, method, options, exc, words):
+    with pytest.raises(exc, match=words):
+        bsplab.build(room, method=method, **options)
+
+
+def test_bsp_memory_limit_raises(room):
+    with pytest.raises(MemoryError):
+        bsplab.build(room, method="bsp_wn+kd", memory_limit_mb=0.01)
+
+
+def test_cancel_stops_a_bsp_build():
+    p = bsplab.Progress()
+    p.cancel()
+    with pytest.raises(bsplab.Cancelled):
+        bsplab.build(scenes.generate("spheres"), method="bsp_cn+kd", progress=p)
+
+
+def box_area_below(lo, hi, axis, t):
+    d = np.array(hi, float) - np.array(lo, float)
+    d[axis] = t - lo[axis]
+    return 2 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+
+
+def test_cell_areas_of_a_box_are_exact():
+    lo, hi = (-1.0, 0.0, 2.0), (3.0, 0.5, 4.0)
+    for axis in range(3):
+        u = tuple(float(i == axis) for i in range(3))
+        ts = np.linspace(lo[axis], hi[axis], 9)[1:-1]
+        total, rows = _core.cell_areas(lo, hi, [], u, list(ts))
+        assert total == pytest.approx(box_area_below(lo, hi, axis, hi[axis]))
+        for t, (b, a, tb, ta) in zip(ts, rows):
+            assert b == pytest.approx(box_area_below(lo, hi, axis, t), rel=1e-12)
+            # The part above is the box [t, hi] along the axis.
+            mirrored = box_area_below(lo, hi, axis, lo[axis] + hi[axis] - t)
+            assert a == pytest.approx(mirrored, rel=1e-12)
+            assert (tb, ta) == pytest.approx((b, a), rel=1e-9)
+
+
+def test_tabulated_areas_equal_direct_ones_on_cut_cells():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        cuts = []
+        for _ in range(4):
+            n = rng.normal(size=3)
+            n /= np.linalg.norm(n)
+            cuts.append((*n, float(n @ rng.uniform(0.3, 0.7, 3))))
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        ts = list(rng.uniform(-0.5, 2.0, 25))
+        total, rows = _core.cell_areas((0, 0, 0), (1, 1, 1), cuts, tuple(u), ts)
+        assert 0 < total < 6
+        for b, a, tb, ta in rows:
+            assert tb == pytest.approx(b, rel=1e-7, abs=1e-12)
+            assert ta == pytest.approx(a, rel=1e-7, abs=1e-12)
+            # Both parts' surfaces cover the cell's: SA(L) + SA(R) >= SA(P).
+            assert b + a >= total * (1 - 1e-9) or b == 0 or a == 0
+
+
+def test_cut_cell_area_matches_an_independent_formula():
+    # The unit cube cut by x + y + z = 1.5 through its centre: the cap is a
+    # regular hexagon of side sqrt(2)/2, area (3 sqrt 3 / 2) s^2; each half
+    # keeps half of the cube's surface.
+    s = math.sqrt(2) / 2
+    hexagon = 1.5 * math.sqrt(3) * s * s
+    n = 1 / math.sqrt(3)
+    total, _ = _core.cell_areas((0, 0, 0), (1, 1, 1), [(n, n, n, 1.5 * n)], (1, 0, 0), [])
+    assert total == pytest.approx(3 + hexagon, rel=1e-12)
