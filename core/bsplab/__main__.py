@@ -81,6 +81,31 @@ def cmd_bench(args) -> int:
     return 1 if bad else 0
 
 
+def cmd_family(args) -> int:
+    from bsplab import bench_family
+    from bsplab.method_table import METHODS
+    ks = list(range(args.kmin, args.kmax + 1))
+    methods = args.methods or [m for m in METHODS if m != "kd"]
+    rows = bench_family.run(args.scenes, methods, ks, repeats=args.repeats, side=args.side)
+    command = "python -m bsplab " + " ".join(sys.argv[1:])
+    if args.out:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(bench_family.markdown(rows, command))
+        bench_family.write_csv(rows, out.with_suffix(".csv"))
+        print(f"written {out} and {out.with_suffix('.csv')}")
+    wrong = sum(r["primary_unexplained"] + r["ao_unexplained"] for r in rows)
+    return 1 if wrong else 0
+
+
+def cmd_calibrate(args) -> int:
+    from bsplab import calibrate
+    r = calibrate.run(args.scenes, repeats=args.repeats)
+    for k, v in r.items():
+        print(f"  {k:18} {v:.3f}" if isinstance(v, float) else f"  {k:18} {v}")
+    return 0
+
+
 def cmd_scenes(args) -> int:
     from bsplab import scenes
     scenes.main_write(args.out)
@@ -118,6 +143,23 @@ def main(argv=None) -> int:
     b.add_argument("--repeats", type=int, default=3)
     b.add_argument("--out", help="write a Markdown report here")
     b.set_defaults(func=cmd_bench)
+
+    f = sub.add_parser("bench-family",
+                       help="every BSP method at K = kmin..kmax against kd and Embree")
+    f.add_argument("--scenes", nargs="+",
+                   default=["sponza_dabrovic", "conference", "sibenik", "bunny"])
+    f.add_argument("--methods", nargs="*", help="default: every method but kd")
+    f.add_argument("--kmin", type=int, default=3)
+    f.add_argument("--kmax", type=int, default=10)
+    f.add_argument("--side", type=int, default=384, help="primary rays: side x side")
+    f.add_argument("--repeats", type=int, default=2)
+    f.add_argument("--out", help="write Markdown here (and the rows as .csv beside it)")
+    f.set_defaults(func=cmd_family)
+
+    c = sub.add_parser("calibrate", help="fit the SAH costs to this machine's trace times")
+    c.add_argument("--scenes", nargs="+", default=["spheres", "room"])
+    c.add_argument("--repeats", type=int, default=3)
+    c.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("scenes", help="(re)write the generated scenes as PLY files")
     s.add_argument("--out", default="scenes")

@@ -65,3 +65,35 @@ def random_rays(triangles: np.ndarray, count: int, seed: int = 1):
     d = rng.normal(size=(count, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     return origins, d.astype(np.float32)
+
+
+def ambient_occlusion_rays(triangles: np.ndarray, origins: np.ndarray, directions: np.ndarray,
+                           hits: dict, samples: int = 1, seed: int = 2):
+    """Incoherent secondary rays, as an ambient-occlusion pass casts them:
+    from every primary hit point, `samples` cosine-weighted directions about
+    the normal facing the viewer. Origins are lifted off the surface by a
+    small fraction of the scene size so they do not re-hit their own
+    triangle."""
+    hit = hits["prim"] >= 0
+    prim = hits["prim"][hit]
+    tri = triangles[prim].astype(np.float64)
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    d0 = directions[hit].astype(np.float64)
+    n *= -np.sign(np.einsum("ij,ij->i", n, d0))[:, None]  # face the viewer
+    p = origins[hit] + d0 * hits["t"][hit][:, None].astype(np.float64)
+    lo, hi = bounds(triangles)
+    p += n * (1e-4 * float(np.linalg.norm(hi - lo)))
+    n = np.repeat(n, samples, axis=0)
+    p = np.repeat(p, samples, axis=0)
+    rng = np.random.default_rng(seed)
+    r1, r2 = rng.random(len(n)), rng.random(len(n))
+    # Cosine-weighted: uniform on the disc, lifted onto the hemisphere.
+    r, phi = np.sqrt(r1), 2 * np.pi * r2
+    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - r1)], axis=1)
+    helper = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    d = local[:, :1] * t1 + local[:, 1:2] * t2 + local[:, 2:] * n
+    return p.astype(np.float32), d.astype(np.float32)
