@@ -84,7 +84,7 @@ def cmd_bench(args) -> int:
 def cmd_family(args) -> int:
     from bsplab import bench_family
     from bsplab.method_table import METHODS
-    ks = list(range(args.kmin, args.kmax + 1))
+    ks = args.ks or list(range(args.kmin, args.kmax + 1))
     methods = args.methods or [m for m in METHODS if m != "kd"]
     rows = bench_family.run(args.scenes, methods, ks, repeats=args.repeats, side=args.side)
     command = "python -m bsplab " + " ".join(sys.argv[1:])
@@ -151,6 +151,7 @@ def main(argv=None) -> int:
     f.add_argument("--methods", nargs="*", help="default: every method but kd")
     f.add_argument("--kmin", type=int, default=3)
     f.add_argument("--kmax", type=int, default=10)
+    f.add_argument("--ks", type=int, nargs="*", help="explicit K values (instead of kmin..kmax)")
     f.add_argument("--side", type=int, default=384, help="primary rays: side x side")
     f.add_argument("--repeats", type=int, default=2)
     f.add_argument("--out", help="write Markdown here (and the rows as .csv beside it)")

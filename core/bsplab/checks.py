@@ -88,6 +88,7 @@ def build_options(method, options: dict) -> dict:
         "max_duplication": number(o["max_duplication"], "max_duplication", low=1, high=1000),
         "memory_limit_mb": number(o["memory_limit_mb"], "memory_limit_mb", low=0, low_open=True),
         "threads": threads(o["threads"]),
+        "leaf_boxes": choice(o["leaf_boxes"], "leaf_boxes", ("none", "triangle", "clipped")),
     }
     if "k" in allowed:
         k = number(o["k"], "k", integer=True)
@@ -119,6 +120,12 @@ def build_options(method, options: dict) -> dict:
         out["ize_candidates"] = number(o["ize_candidates"], "ize_candidates", low=1,
                                        high=1 << 20, integer=True)
     return out
+
+
+def choice(value, name: str, allowed: tuple[str, ...]) -> str:
+    if value not in allowed:
+        raise ValueError(f"{name} must be one of {', '.join(allowed)}; got {value!r}")
+    return value
 
 
 def threads(value) -> int:

@@ -17,6 +17,10 @@ COMMON_OPTIONS = {
     "max_duplication": 8.0,
     "memory_limit_mb": 4096.0,
     "threads": 0,
+    # Leaf culling with the ray segment's box: "triangle" keeps each
+    # triangle's box (24 bytes per triangle), "clipped" each reference's box
+    # clipped to its leaf cell (24 bytes per reference), "none" neither.
+    "leaf_boxes": "triangle",
 }
 
 # Options of the BSP family, with their defaults. The ^Kd costs: Ize et al.

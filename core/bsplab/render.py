@@ -12,7 +12,8 @@ import numpy as np
 from .camera import Camera
 from .tree import Tree
 
-RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests")
+RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests", "heat_culled")
+HEAT_COUNTERS = {"heat_steps": "steps", "heat_tests": "tests", "heat_culled": "culled"}
 MAX_SIZE = 16384
 BACKGROUND = np.array([0.05, 0.05, 0.06], np.float32)
 
@@ -44,8 +45,8 @@ def shade(mode: str, hits: dict, directions: np.ndarray, triangles: np.ndarray) 
     prim = hits["prim"]
     hit = prim >= 0
     rgb = np.broadcast_to(BACKGROUND, (len(prim), 3)).copy()
-    if mode in ("heat_steps", "heat_tests"):
-        cost = hits["steps" if mode == "heat_steps" else "tests"].astype(np.float32)
+    if mode in HEAT_COUNTERS:
+        cost = hits[HEAT_COUNTERS[mode]].astype(np.float32)
         top = max(float(cost.max(initial=0)), 1.0)
         return heat_ramp(cost / top)
     if not hit.any():
@@ -75,7 +76,7 @@ def check_size(width, height) -> tuple[int, int]:
 
 
 def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "shaded", *,
-           threads: int = 0, progress=None) -> tuple[np.ndarray, dict]:
+           threads: int = 0, cull: bool = True, progress=None) -> tuple[np.ndarray, dict]:
     """Renders an (H, W, 4) float32 RGBA image (row 0 = top) and its statistics."""
     if not isinstance(tree, Tree):
         raise TypeError(f"tree must be a bsplab.Tree, got {type(tree).__name__}")
@@ -86,7 +87,7 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
         raise ValueError(f"unknown render mode {mode!r}; modes: {', '.join(RENDER_MODES)}")
     origins, directions = camera.rays(width, height)
     start = time.perf_counter()
-    hits = tree.intersect(origins, directions, threads=threads, progress=progress)
+    hits = tree.intersect(origins, directions, threads=threads, cull=cull, progress=progress)
     seconds = time.perf_counter() - start
     image = np.ones((height * width, 4), np.float32)
     image[:, :3] = shade(mode, hits, directions, tree.triangles)
@@ -97,6 +98,8 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
         "rays_per_second": n / seconds if seconds > 0 else float("inf"),
         "mean_steps": float(hits["steps"].mean()),
         "mean_tests": float(hits["tests"].mean()),
+        "mean_culled": float(hits["culled"].mean()),
+        "mean_general_steps": float(hits["general_steps"].mean()),
         "max_steps": int(hits["steps"].max()),
         "max_tests": int(hits["tests"].max()),
         "hits": int((hits["prim"] >= 0).sum()),

@@ -36,9 +36,13 @@ class Tree:
         """The raw node array; equal bytes mean an identical tree."""
         return self._tree.node_bytes()
 
-    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0,
+    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=True,
                   progress=None) -> dict:
-        """Closest hits of the rays; see docs/api.md for the returned arrays."""
+        """Closest hits of the rays; see docs/api.md for the returned arrays.
+        `cull` skips, in each leaf, the triangles whose box misses the box of
+        the ray's segment there (when the tree keeps boxes: leaf_boxes)."""
+        if not isinstance(cull, (bool, np.bool_)):
+            raise TypeError(f"cull must be True or False, got {cull!r}")
         o, d = checks.rays(origins, directions)
         n = len(o)
         lo = checks.ray_range(tmin, "tmin", n)
@@ -51,10 +55,11 @@ class Tree:
             "steps": np.empty(n, np.uint32),
             "general_steps": np.empty(n, np.uint32),
             "tests": np.empty(n, np.uint32),
+            "culled": np.empty(n, np.uint32),
         }
         _core.intersect(self._tree, o, d, lo, hi, out["t"], out["prim"], out["u"], out["v"],
-                        out["steps"], out["general_steps"], out["tests"],
-                        checks.threads(threads), progress)
+                        out["steps"], out["general_steps"], out["tests"], out["culled"],
+                        checks.threads(threads), bool(cull), progress)
         return out
 
     def __repr__(self) -> str:
@@ -74,6 +79,7 @@ def core_options(method, opts: dict):
     o.strategy = getattr(_core.Strategy, method.strategy)
     o.plus_axes = method.plus_axes
     o.kd_nodes = method.kd_nodes
+    o.leaf_boxes = getattr(_core.LeafBoxes, opts["leaf_boxes"])
     if "rbsp_set" in opts:
         dop = opts["rbsp_set"] == "dop" or (opts["rbsp_set"] == "auto"
                                             and opts["k"] in (3, 7, 9, 13))

@@ -41,8 +41,8 @@ std::unique_ptr<bsp::Tree> build(TriArray tris, const std::string& builder,
 
 void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, FloatIn tmin,
                FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u, Out<float> v,
-               Out<uint32_t> steps, Out<uint32_t> general_steps, Out<uint32_t> tests, int threads,
-               bsp::Progress* progress) {
+               Out<uint32_t> steps, Out<uint32_t> general_steps, Out<uint32_t> tests,
+               Out<uint32_t> culled, int threads, bool cull, bsp::Progress* progress) {
     const size_t n = origins.shape(0);
     auto check = [n](size_t m, const char* what) {
         if (m != n) throw std::invalid_argument(std::string(what) + " has the wrong length");
@@ -55,6 +55,7 @@ void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, F
     check(steps.shape(0), "steps");
     check(general_steps.shape(0), "general_steps");
     check(tests.shape(0), "tests");
+    check(culled.shape(0), "culled");
     if (tmin.shape(0) != 1) check(tmin.shape(0), "tmin");
     if (tmax.shape(0) != 1) check(tmax.shape(0), "tmax");
     bsp::RayBatch rays;
@@ -65,10 +66,10 @@ void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, F
     rays.tmin_stride = tmin.shape(0) == 1 ? 0 : 1;
     rays.tmax_stride = tmax.shape(0) == 1 ? 0 : 1;
     rays.count = n;
-    bsp::HitBatch hits{t.data(),     prim.data(),          u.data(),    v.data(),
-                       steps.data(), general_steps.data(), tests.data()};
+    bsp::HitBatch hits{t.data(),     prim.data(),          u.data(),     v.data(),
+                       steps.data(), general_steps.data(), tests.data(), culled.data()};
     nb::gil_scoped_release release;
-    bsp::intersect(tree, rays, hits, threads, progress);
+    bsp::intersect(tree, rays, hits, threads, cull, progress);
 }
 
 nb::dict stats(const bsp::Tree& tree) {
@@ -95,6 +96,9 @@ nb::dict stats(const bsp::Tree& tree) {
     d["bytes"] = s.bytes;
     d["node_bytes"] = uint64_t(tree.nodes.size() * sizeof(bsp::Node));
     d["plane_bytes"] = uint64_t(tree.planes.size() * sizeof(bsp::Plane));
+    d["box_bytes"] = s.box_bytes;
+    static const char* kinds[] = {"none", "triangle", "clipped"};
+    d["leaf_boxes"] = kinds[int(tree.options.leaf_boxes)];
     d["sah_cost"] = s.sah_cost;
     nb::list planes, dirs;
     for (const bsp::LevelStats& l : s.levels) {
@@ -137,6 +141,11 @@ NB_MODULE(_core, m) {
         .value("clustered", bsp::Strategy::Clustered)
         .value("ize", bsp::Strategy::Ize);
 
+    nb::enum_<bsp::LeafBoxes>(m, "LeafBoxes")
+        .value("none", bsp::LeafBoxes::None)
+        .value("triangle", bsp::LeafBoxes::Triangle)
+        .value("clipped", bsp::LeafBoxes::Clipped);
+
     nb::class_<bsp::BuildOptions>(m, "BuildOptions")
         .def(nb::init<>())
         .def_rw("traversal_cost", &bsp::BuildOptions::traversal_cost)
@@ -157,7 +166,8 @@ NB_MODULE(_core, m) {
         .def_rw("general_cost", &bsp::BuildOptions::general_cost)
         .def_rw("cluster_iterations", &bsp::BuildOptions::cluster_iterations)
         .def_rw("cluster_sample", &bsp::BuildOptions::cluster_sample)
-        .def_rw("ize_candidates", &bsp::BuildOptions::ize_candidates);
+        .def_rw("ize_candidates", &bsp::BuildOptions::ize_candidates)
+        .def_rw("leaf_boxes", &bsp::BuildOptions::leaf_boxes);
 
     nb::class_<bsp::Tree>(m, "Tree")
         .def("stats", &stats)
@@ -217,6 +227,6 @@ NB_MODULE(_core, m) {
         "lo"_a, "hi"_a, "cuts"_a, "u"_a, "ts"_a, "Surface areas of cut cells (for tests).");
     m.def("build", &build, "triangles"_a, "builder"_a, "options"_a, "progress"_a.none());
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
-          "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a, "general_steps"_a, "tests"_a, "threads"_a,
-          "progress"_a.none());
+          "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a, "general_steps"_a, "tests"_a, "culled"_a,
+          "threads"_a, "cull"_a, "progress"_a.none());
 }

@@ -63,11 +63,7 @@ public:
         // by more than that error, so a triangle within it of a plane sits on
         // both sides. Axis planes are exact (the crossing is monotonic in the
         // plane position), as in the kd-tree, and need no fattening.
-        float scale = 0;
-        for (const Triangle& t : tris)
-            for (const Vec3& v : t.v)
-                scale = std::max({scale, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
-        eps_ = scale * (1.0f / (1 << 19));
+        eps_ = robust_epsilon(tris);
         if (opt.strategy == Strategy::Fixed) {
             fixed_ = opt.fixed_set == 1 ? dop_directions(opt.k) : spiral_directions(opt.k);
         }
@@ -172,8 +168,21 @@ private:
     std::unique_ptr<BuildNode> leaf(const NodeRefs& nr, double area, int depth) const {
         auto node = std::make_unique<BuildNode>();
         node->area = float(area);
-        for (const Ref& r : nr.refs) node->refs.push_back(r.tri);
-        std::sort(node->refs.begin(), node->refs.end());
+        std::vector<uint32_t> order(nr.refs.size());
+        for (size_t i = 0; i < order.size(); ++i) order[i] = uint32_t(i);
+        std::sort(order.begin(), order.end(),
+                  [&](uint32_t a, uint32_t b) { return nr.refs[a].tri < nr.refs[b].tri; });
+        for (uint32_t i : order) {
+            node->refs.push_back(nr.refs[i].tri);
+            if (opt_.leaf_boxes != LeafBoxes::Clipped) continue;
+            // The clipped polygon's box, padded like the fattened extents.
+            uint32_t c;
+            const Vec3* v = verts(nr, nr.refs[i], c);
+            Box b;
+            for (uint32_t j = 0; j < c; ++j) b.extend(v[j]);
+            const Vec3 pad(eps_, eps_, eps_);
+            node->ref_boxes.push_back({b.lo - pad, b.hi + pad});
+        }
         report_leaf(progress_, depth);
         return node;
     }

@@ -61,7 +61,9 @@ struct Flattener {
         const uint32_t index = uint32_t(tree.nodes.size());
         if (n.kind < 0) {
             const uint32_t count = uint32_t(n.refs.size());
-            if (count == 1) {
+            const bool clipped = tree.options.leaf_boxes == LeafBoxes::Clipped;
+            if (clipped) tree.boxes.insert(tree.boxes.end(), n.ref_boxes.begin(), n.ref_boxes.end());
+            if (count == 1 && !clipped) {
                 tree.nodes.push_back(Node::leaf(n.refs[0], 1));
             } else {
                 tree.nodes.push_back(Node::leaf(uint32_t(tree.refs.size()), count));
@@ -83,6 +85,14 @@ struct Flattener {
 };
 
 }  // namespace
+
+float robust_epsilon(const std::vector<Triangle>& triangles) {
+    float scale = 0;
+    for (const Triangle& t : triangles)
+        for (const Vec3& v : t.v)
+            scale = std::max({scale, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+    return scale * (1.0f / (1 << 19));
+}
 
 Prepared prepare(Tree& tree, const BuildOptions& options) {
     Prepared p;
@@ -119,9 +129,16 @@ void finish(Tree& tree, const BuildNode& root) {
         st.levels.push_back(ls);
     }
     Flattener{tree}.emit(root);
+    if (tree.options.leaf_boxes == LeafBoxes::Triangle) {
+        tree.boxes.reserve(tree.triangles.size());
+        for (const Triangle& t : tree.triangles) tree.boxes.push_back(t.bounds());
+    }
+    tree.cull_pad = 2.0f * robust_epsilon(tree.triangles);
+    st.box_bytes = tree.boxes.size() * sizeof(Box);
     st.nodes = tree.nodes.size();
     st.bytes = tree.nodes.size() * sizeof(Node) + tree.refs.size() * sizeof(uint32_t) +
-               tree.planes.size() * sizeof(Plane) + tree.triangles.size() * sizeof(Triangle);
+               tree.planes.size() * sizeof(Plane) + tree.triangles.size() * sizeof(Triangle) +
+               st.box_bytes;
     if (double(st.bytes) > tree.options.memory_limit_mb * 1024.0 * 1024.0) throw std::bad_alloc();
 }
 

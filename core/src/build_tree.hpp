@@ -16,7 +16,13 @@ struct BuildNode {
     float area = 0; // surface area of the node's cell (for the SAH cost stat)
     std::unique_ptr<BuildNode> child[2];
     std::vector<uint32_t> refs;
+    std::vector<Box> ref_boxes;  // LeafBoxes::Clipped: the clipped box of each reference
 };
+
+// The fattening of extents along non-axis planes and the padding of the
+// segment box in leaf culling: 2^-19 of the scene's largest coordinate, well
+// beyond the float error of a plane crossing or a segment end point.
+float robust_epsilon(const std::vector<Triangle>& triangles);
 
 struct Prepared {
     std::vector<uint32_t> live;  // indices of the non-degenerate triangles

@@ -239,6 +239,20 @@ private:
         for (const Event& e : ev.axis[0])
             if (e.type() != kEnd) node->refs.push_back(e.tri());
         std::sort(node->refs.begin(), node->refs.end());
+        if (opt_.leaf_boxes == LeafBoxes::Clipped) {
+            // The events hold each triangle's bounds clipped to this cell
+            // (padded outwards by the clipper): gather them per reference.
+            node->ref_boxes.assign(node->refs.size(), Box());
+            for (int k = 0; k < 3; ++k) {
+                for (const Event& e : ev.axis[k]) {
+                    const size_t i = size_t(std::lower_bound(node->refs.begin(), node->refs.end(),
+                                                             e.tri()) - node->refs.begin());
+                    Box& b = node->ref_boxes[i];
+                    if (e.type() != kEnd) b.lo[k] = e.pos;
+                    if (e.type() != kStart) b.hi[k] = e.pos;
+                }
+            }
+        }
         report_leaf(progress_, depth);
         return node;
     }

@@ -56,8 +56,29 @@ struct StackEntry {
     float tmin, tmax;
 };
 
+// The box of the ray's segment o + [t0, t1] d, padded so that no float error
+// of the end points (or of the traversal's plane crossings, which the
+// builders' fattening already bounds by tree.cull_pad / 2) can cull a hit.
+struct SegmentBox {
+    float lo[3], hi[3];
+    void set(const float* org, const float* dir, float t0, float t1, float pad) {
+        for (int k = 0; k < 3; ++k) {
+            const float a = org[k] + t0 * dir[k], b = org[k] + t1 * dir[k];
+            const float p = pad + (std::fabs(a) + std::fabs(b)) * (1.0f / (1 << 20));
+            lo[k] = std::min(a, b) - p;
+            hi[k] = std::max(a, b) + p;
+        }
+    }
+    bool misses(const Box& b) const {
+        return b.lo.x > hi[0] || b.hi.x < lo[0] || b.lo.y > hi[1] || b.hi.y < lo[1] ||
+               b.lo.z > hi[2] || b.hi.z < lo[2];
+    }
+};
+
+template <LeafBoxes kBoxes>
 void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
-               Closest& hit, uint32_t& steps, uint32_t& general_steps, uint32_t& tests) {
+               Closest& hit, uint32_t& steps, uint32_t& general_steps, uint32_t& tests,
+               uint32_t& culled) {
     hit.t = tmax;
     const Vec3 inv(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
     float t0 = tmin, t1 = tmax;
@@ -75,7 +96,10 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
     StackEntry stack[72];
     int top = 0;
     uint32_t index = 0;
-    uint32_t n_steps = 0, n_general = 0, n_tests = 0;
+    uint32_t n_steps = 0, n_general = 0, n_tests = 0, n_culled = 0;
+    const Box* boxes = tree.boxes.data();
+    // Trees with a box per reference keep one-triangle leaves in refs[] too.
+    const bool inline_single = tree.options.leaf_boxes != LeafBoxes::Clipped;
 
     for (;;) {
         if (hit.t < t0) break;  // everything left lies beyond the closest hit
@@ -120,9 +144,21 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
             continue;
         }
         const uint32_t count = node.count();
-        const uint32_t* list = count == 1 ? &nodes[index].first : refs + node.first;
+        const uint32_t* list = count == 1 && inline_single ? &nodes[index].first : refs + node.first;
+        SegmentBox seg;
+        if constexpr (kBoxes != LeafBoxes::None)
+            seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
         for (uint32_t i = 0; i < count; ++i) {
             const uint32_t p = list[i];
+            if constexpr (kBoxes != LeafBoxes::None) {
+                // A culled triangle is not marked in the mailbox: it may
+                // still be hit in a later leaf that references it.
+                const Box& b = boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
+                if (seg.misses(b)) {
+                    ++n_culled;
+                    continue;
+                }
+            }
             if (mailbox.seen(p)) continue;
             ++n_tests;
             TriangleHit th;
@@ -131,6 +167,8 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
                 hit.prim = int32_t(p);
                 hit.u = th.u;
                 hit.v = th.v;
+                if constexpr (kBoxes != LeafBoxes::None)
+                    seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
             }
         }
         if ((hit.prim >= 0 && hit.t <= t1) || top == 0) break;
@@ -142,12 +180,12 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
     steps = n_steps;
     general_steps = n_general;
     tests = n_tests;
+    culled = n_culled;
 }
 
-}  // namespace
-
-void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
-               Progress* progress) {
+template <LeafBoxes kBoxes>
+void intersect_all(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+                   Progress* progress) {
     constexpr size_t kChunk = 1024;
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
@@ -156,10 +194,10 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
             const float* o = rays.origins + 3 * i;
             const float* d = rays.directions + 3 * i;
             Closest c;
-            uint32_t steps = 0, general = 0, tests = 0;
-            trace_one(tree, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]),
-                      rays.tmin[i * rays.tmin_stride], rays.tmax[i * rays.tmax_stride], c, steps,
-                      general, tests);
+            uint32_t steps = 0, general = 0, tests = 0, culled = 0;
+            trace_one<kBoxes>(tree, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]),
+                              rays.tmin[i * rays.tmin_stride], rays.tmax[i * rays.tmax_stride], c,
+                              steps, general, tests, culled);
             const bool hit = c.prim >= 0;
             hits.t[i] = hit ? c.t : kInf;
             hits.prim[i] = c.prim;
@@ -168,9 +206,25 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
             hits.steps[i] = steps;
             hits.general_steps[i] = general;
             hits.tests[i] = tests;
+            hits.culled[i] = culled;
         }
         if (progress) progress->add(units_per_ray * (end - begin));
     });
+}
+
+}  // namespace
+
+void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
+               Progress* progress) {
+    // One instantiation per box kind keeps the check out of the loop when off.
+    switch (cull ? tree.options.leaf_boxes : LeafBoxes::None) {
+        case LeafBoxes::None:
+            return intersect_all<LeafBoxes::None>(tree, rays, hits, threads, progress);
+        case LeafBoxes::Triangle:
+            return intersect_all<LeafBoxes::Triangle>(tree, rays, hits, threads, progress);
+        case LeafBoxes::Clipped:
+            return intersect_all<LeafBoxes::Clipped>(tree, rays, hits, threads, progress);
+    }
 }
 
 }  // namespace bsp

@@ -26,9 +26,12 @@ struct HitBatch {
     uint32_t* steps;          // nodes visited, of every kind
     uint32_t* general_steps;  // general (plane) nodes among them
     uint32_t* tests;          // ray-triangle tests performed
+    uint32_t* culled;         // tests skipped by the segment-box check
 };
 
-void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+// With `cull` (and boxes in the tree), a leaf skips the triangles whose box
+// misses the box of the ray's segment inside the leaf.
+void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
                Progress* progress = nullptr);
 
 }  // namespace bsp

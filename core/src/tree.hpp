@@ -71,6 +71,12 @@ enum class Strategy : int {
     Ize,          // BSP_IZE: kd planes + each triangle's plane and edge planes
 };
 
+enum class LeafBoxes : int {
+    None = 0,      // no culling possible
+    Triangle = 1,  // each triangle's own box: 24 bytes per triangle
+    Clipped = 2,   // each reference's triangle clipped to its leaf cell: 24 bytes per reference
+};
+
 struct BuildOptions {
     float traversal_cost = 1.0f;   // K_d: one kd step (every step without ^Kd)
     float intersect_cost = 1.5f;   // K_i: one ray-triangle test
@@ -92,6 +98,8 @@ struct BuildOptions {
     int cluster_iterations = 16;   // BSP_cn: k-means rounds at most
     int cluster_sample = 1024;     // BSP_cn: normals clustered per node at most
     int ize_candidates = 64;       // BSP_IZE: triangles whose planes are tried per node at most
+    // Leaf culling with the ray segment's box (seed 002): which boxes to keep.
+    LeafBoxes leaf_boxes = LeafBoxes::Triangle;
 };
 
 struct LevelStats {
@@ -107,7 +115,7 @@ struct BuildStats {
     uint64_t references = 0, max_leaf_size = 0;
     int max_depth = 0, depth_limit = 0;
     double mean_leaf_depth = 0, sah_cost = 0;
-    uint64_t bytes = 0;
+    uint64_t bytes = 0, box_bytes = 0;
     std::vector<LevelStats> levels;
 };
 
@@ -116,6 +124,10 @@ struct Tree {
     std::vector<Node> nodes;
     std::vector<uint32_t> refs;
     std::vector<Plane> planes;
+    // Culling boxes: per triangle (LeafBoxes::Triangle) or per reference slot
+    // of refs[] (LeafBoxes::Clipped, where leaves never inline a triangle).
+    std::vector<Box> boxes;
+    float cull_pad = 0;  // padding of the segment box: beyond any float error of the traversal
     Box bounds;
     BuildOptions options;
     BuildStats stats;
