@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 # against what the add-on meets.
 DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4"
 
-.PHONY: all venv core demo test test-core test-blender bench addon scenes clean
+.PHONY: all venv core demo demo-core test test-core test-blender bench bench-family addon scenes clean
 
 all: demo
 
@@ -24,7 +24,14 @@ venv: $(BIN)/.deps
 core: venv
 	$(BIN)/python -m pip install -q --no-build-isolation --no-deps ./core
 
+# The main job through the add-on: Blender (the bpy 4.2 module, set up in
+# .venv-bpy42) generates a scene, runs Build & Render, saves the preview image
+# as out/blender_demo.png and prints the panel's statistics.
 demo: core
+	bash blender_tests/demo_in_blender.sh $(abspath $(BIN)/python) -- --out out/blender_demo.png --compare-embree
+
+# The same job on the core alone, without Blender.
+demo-core: core
 	$(BIN)/python -m bsplab demo --scene spheres --out out/demo.png
 
 test: test-core test-blender
@@ -37,6 +44,9 @@ test-blender: core
 
 bench: core
 	$(BIN)/python -m bsplab bench --out docs/benchmark.md
+
+bench-family: core
+	$(BIN)/python -m bsplab bench-family --out docs/bsp_benchmark.md
 
 addon: core
 	$(BIN)/python addon/build_extension.py

@@ -1,0 +1,436 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Build & Render operator.
+
+The work is split in three so that bpy data is only touched on the main
+thread: `read_scene()` copies everything the core needs into numpy arrays
+and plain values, `Job.run()` builds and renders without touching bpy (the
+core releases the GIL, so a worker thread keeps Blender responsive), and
+`apply_result()` writes the preview image and the statistics.
+"""
+
+import importlib
+import json
+import os
+import threading
+import time
+import traceback
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from . import backend, camera, extract, preview
+
+
+class UserError(Exception):
+    """An error with a message meant for the user's eyes."""
+
+
+@dataclass
+class JobInput:
+    triangles: np.ndarray
+    objects: int
+    instances: int
+    camera: camera.CameraSpec
+    method: str
+    options: dict
+    mode: str
+    threads: int
+    cull: bool
+    compare_with_embree: bool
+    scene_name: str
+
+
+# The one job in flight, if any; the panel reads its progress.
+_active_job = None
+
+
+def active_job():
+    return _active_job
+
+
+# -----------------------------------------------------------------------------
+# Main thread: read the scene
+
+
+def read_scene(context, core):
+    """Copy everything the job needs out of bpy; raise UserError if unusable."""
+    scene = context.scene
+    settings = scene.bsplab
+    methods = core.methods()
+    method = settings.method
+    if method not in methods:
+        raise UserError("Unknown tree method '{}'".format(method))
+    info = methods[method]
+    params = info.get("params", ())
+    min_k, max_k = info.get("min_k"), info.get("max_k")
+    if "k" in params and min_k is not None and not min_k <= settings.k <= max_k:
+        raise UserError("K must be in {}..{} for {}, not {}".format(
+            min_k, max_k, info.get("label", method), settings.k))
+    depsgraph = context.evaluated_depsgraph_get()
+    try:
+        cam = camera.scene_camera(scene, depsgraph, settings.preview_percentage)
+    except camera.CameraError as ex:
+        raise UserError(str(ex)) from ex
+    geometry = extract.scene_triangles(depsgraph)
+    if geometry.triangle_count == 0:
+        if geometry.instances == 0:
+            raise UserError("No visible mesh in the scene: nothing to build a tree from")
+        raise UserError("The visible meshes are empty: they have no faces to build a tree from")
+    return JobInput(
+        triangles=geometry.triangles,
+        objects=geometry.objects,
+        instances=geometry.instances,
+        camera=cam,
+        method=method,
+        options=settings.build_options(params),
+        mode=settings.render_mode,
+        threads=settings.threads,
+        cull=settings.cull,
+        compare_with_embree=settings.compare_with_embree,
+        scene_name=scene.name,
+    )
+
+
+# -----------------------------------------------------------------------------
+# Worker thread: build, render, compare; no bpy in here
+
+
+def make_camera(core, spec):
+    return core.Camera(**spec.kwargs())
+
+
+def foreign_embree_library():
+    """Name of an Embree library whose symbols Blender exports, if any.
+
+    Some Linux distributions' Blender builds (Debian's 3.4, for one) link a
+    shared libembree3 into the executable. Its `rtc*` symbols are then global,
+    embreex's bundled Embree 4 binds to them and crashes on the first query.
+    Libraries loaded privately (the bpy module's own Embree) do not clash.
+    """
+    import ctypes
+    try:
+        ctypes.CDLL(None).rtcNewDevice
+    except (AttributeError, OSError):
+        return None
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = [line.rsplit(" ", 1)[-1] for line in maps.read().splitlines()]
+    except OSError:
+        paths = []
+    names = [os.path.basename(p) for p in paths
+             if os.path.basename(p).startswith("libembree") and "embreex" not in p]
+    return names[0] if names else "Embree library"
+
+
+def compare_with_embree(core, tree, cam, inp):
+    """Trace the camera rays with the tree and with Embree; compare the hits."""
+    try:
+        oracle = importlib.import_module(core.__name__ + ".oracle")
+        importlib.import_module("embreex")
+    except ImportError as ex:
+        return {"available": False,
+                "message": "embreex is not installed, comparison skipped ({})".format(ex)}
+    clash = foreign_embree_library()
+    if clash is not None:
+        return {"available": False,
+                "message": "Embree comparison unavailable: this Blender exports its own {}, "
+                           "which clashes with embreex's Embree".format(clash)}
+    origins, directions = cam.rays(inp.camera.width, inp.camera.height)
+    start = time.perf_counter()
+    ours = tree.intersect(origins, directions, threads=inp.threads, cull=inp.cull)
+    bsplab_seconds = time.perf_counter() - start
+    tracer = oracle.EmbreeTracer(tree.triangles)
+    start = time.perf_counter()
+    theirs = tracer.intersect(origins, directions)
+    embree_seconds = time.perf_counter() - start
+    compare = oracle.compare(ours, theirs, triangles=tree.triangles,
+                             origins=origins, directions=directions)
+    return {
+        "available": True,
+        "bsplab_seconds": bsplab_seconds,
+        "embree_seconds": embree_seconds,
+        "embree_build_seconds": getattr(tracer, "build_seconds", None),
+        # How many times longer the tree takes than Embree for the same rays.
+        "time_ratio": bsplab_seconds / embree_seconds if embree_seconds > 0 else None,
+        # Only the counts: the per-ray index arrays are of no use in the panel.
+        "compare": {k: v for k, v in _plain(compare).items() if not isinstance(v, (list, str))},
+    }
+
+
+def _plain(value):
+    """Make core results JSON-friendly (numpy scalars and arrays included)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist() if value.size <= 16 else "array{}".format(value.shape)
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+class Job:
+    """Build + render + optional comparison, runnable on a worker thread."""
+
+    def __init__(self, core, inp):
+        self.core = core
+        self.input = inp
+        self.build_progress = core.Progress()
+        self.render_progress = core.Progress()
+        self.cancelled = False
+        self.result = None
+        self.error = None
+        self._thread = None
+
+    def run(self):
+        try:
+            self.result = self._compute()
+        except BaseException as ex:  # Reported on the main thread.
+            self.error = ex
+
+    def _check_cancelled(self):
+        if self.cancelled:
+            raise self.core.Cancelled("cancelled")
+
+    def _compute(self):
+        core, inp = self.core, self.input
+        cam = make_camera(core, inp.camera)
+        tree = core.build(inp.triangles, method=inp.method,
+                          progress=self.build_progress, **inp.options)
+        self._check_cancelled()
+        image, render_stats = core.render(tree, cam, inp.camera.width, inp.camera.height,
+                                          mode=inp.mode, threads=inp.threads, cull=inp.cull,
+                                          progress=self.render_progress)
+        self._check_cancelled()
+        render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
+                            mode=inp.mode, camera=inp.camera.name, cull=inp.cull)
+        stats = {
+            "scene": {"triangles": len(inp.triangles), "objects": inp.objects,
+                      "instances": inp.instances},
+            "build": dict(tree.stats),
+            "render": render_stats,
+        }
+        if inp.compare_with_embree:
+            stats["embree"] = compare_with_embree(core, tree, cam, inp)
+            self._check_cancelled()
+        return {"image": np.asarray(image, dtype=np.float32), "stats": _plain(stats)}
+
+    def start(self):
+        # Daemon: quitting Blender mid-build must not wait for the core.
+        self._thread = threading.Thread(target=self.run, name="BSP Lab job", daemon=True)
+        self._thread.start()
+
+    def is_alive(self):
+        return self._thread is not None and self._thread.is_alive()
+
+    def join(self, timeout=None):
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    def cancel(self):
+        self.cancelled = True
+        self.build_progress.cancel()
+        self.render_progress.cancel()
+
+    def fraction(self):
+        # Building usually dominates; weigh it accordingly.
+        return min(1.0, 0.6 * self.build_progress.value + 0.4 * self.render_progress.value)
+
+
+def error_message(core, ex):
+    """The user's message for an exception raised by the job."""
+    if isinstance(ex, UserError):
+        return str(ex)
+    if core is not None and isinstance(ex, core.Cancelled):
+        return "BSP Lab: Build & Render cancelled; the previous preview is unchanged"
+    if isinstance(ex, MemoryError):
+        return "BSP Lab: the tree exceeds the memory budget ({})".format(ex)
+    if isinstance(ex, (ValueError, TypeError)):
+        # The core's checks: NaN/inf coordinates, options out of range.
+        return "BSP Lab cannot build the tree: {}".format(ex)
+    return "BSP Lab failed: {}: {}".format(type(ex).__name__, ex)
+
+
+# -----------------------------------------------------------------------------
+# Main thread: apply the result
+
+
+def check_result(result):
+    hits = result["stats"]["render"].get("hits")
+    if hits == 0:
+        raise UserError("No mesh in the camera's view: every camera ray missed")
+
+
+def apply_result(scene, result):
+    preview.write_preview(result["image"])
+    scene.bsplab.stats_json = json.dumps(result["stats"])
+
+
+def _tag_redraw_sidebars(context):
+    # Only the sidebars: redrawing whole 3D views ten times a second would
+    # cost heavy scenes more than the job itself.
+    for window in context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type != 'VIEW_3D':
+                continue
+            for region in area.regions:
+                if region.type == 'UI':
+                    region.tag_redraw()
+
+
+def _set_job_state(context, running, progress=0.0):
+    state = context.window_manager.bsplab_job
+    state.is_running = running
+    state.progress = progress
+
+
+# -----------------------------------------------------------------------------
+# The operator
+
+
+class BSPLAB_OT_build_render(bpy.types.Operator):
+    """Build the tree of the visible meshes and render the scene camera's view with it"""
+
+    bl_idname = "bsplab.build_render"
+    bl_label = "Build & Render"
+    bl_options = {'REGISTER'}
+
+    _job = None
+    _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        if _active_job is not None:
+            cls.poll_message_set_safe("A BSP Lab job is already running")
+            return False
+        return context.scene is not None
+
+    @classmethod
+    def poll_message_set_safe(cls, message):
+        # `poll_message_set` exists from Blender 3.0 on.
+        if hasattr(cls, "poll_message_set"):
+            cls.poll_message_set(message)
+
+    def _fail(self, message):
+        self.report({'ERROR'}, message)
+        return {'CANCELLED'}
+
+    def _prepare(self, context):
+        """A Job ready to run, or raise UserError."""
+        try:
+            core = backend.import_core()
+        except backend.CoreMissing as ex:
+            raise UserError(str(ex)) from ex
+        try:
+            return Job(core, read_scene(context, core))
+        except UserError:
+            raise
+        except Exception as ex:
+            # An unexpected failure reading the scene: report it, don't crash.
+            traceback.print_exc()
+            raise UserError("BSP Lab could not read the scene: {}: {}".format(
+                type(ex).__name__, ex)) from ex
+
+    def _finish(self, context, scene, job):
+        if job.error is not None:
+            return self._fail(error_message(job.core, job.error))
+        try:
+            check_result(job.result)
+        except UserError as ex:
+            return self._fail(str(ex))
+        apply_result(scene, job.result)
+        stats = job.result["stats"]
+        self.report({'INFO'}, "BSP Lab: {} triangles, {} nodes, built in {:.3f} s, rendered in {:.3f} s"
+                    .format(stats["scene"]["triangles"], stats["build"].get("nodes", "?"),
+                            stats["build"].get("build_seconds", 0.0),
+                            stats["render"].get("seconds", 0.0)))
+        return {'FINISHED'}
+
+    def execute(self, context):
+        try:
+            job = self._prepare(context)
+        except UserError as ex:
+            return self._fail(str(ex))
+        job.run()
+        return self._finish(context, context.scene, job)
+
+    def invoke(self, context, event):
+        # Without a window there is no event loop to run a modal operator in.
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        global _active_job
+        try:
+            job = self._prepare(context)
+        except UserError as ex:
+            return self._fail(str(ex))
+        self._job = _active_job = job
+        job.start()
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        _set_job_state(context, True)
+        _tag_redraw_sidebars(context)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        try:
+            return self._modal(context, event)
+        except Exception as ex:
+            # Never leave a job marked running (the button would stay
+            # disabled) nor a timer behind.
+            self._job.cancel()
+            self._cleanup(context)
+            return self._fail("BSP Lab failed: {}: {}".format(type(ex).__name__, ex))
+
+    def _modal(self, context, event):
+        job = self._job
+        if event.type == 'ESC' and event.value == 'PRESS':
+            job.cancel()
+            return {'RUNNING_MODAL'}
+        # Any timer will do (ours ticks every 0.1 s): polling is cheap.
+        if event.type != 'TIMER':
+            return {'PASS_THROUGH'}
+        if job.is_alive():
+            # The panel reads the job's progress itself: setting an RNA
+            # property here would redraw every editor on each tick.
+            _tag_redraw_sidebars(context)
+            return {'RUNNING_MODAL'}
+        return self._end(context)
+
+    def cancel(self, context):
+        # Blender calls this when the operator is aborted (e.g. file load).
+        if self._job is not None:
+            self._job.cancel()
+            self._job.join(5.0)
+        self._cleanup(context)
+
+    def _cleanup(self, context):
+        global _active_job
+        if self._timer is not None:
+            context.window_manager.event_timer_remove(self._timer)
+            self._timer = None
+        _active_job = None
+        _set_job_state(context, False)
+        _tag_redraw_sidebars(context)
+
+    def _end(self, context):
+        job = self._job
+        self._cleanup(context)
+        scene = bpy.data.scenes.get(job.input.scene_name) or context.scene
+        return self._finish(context, scene, job)
+
+
+def cancel_active_job():
+    """Stop the running job (used on unregister); waits a little for it."""
+    global _active_job
+    if _active_job is not None:
+        _active_job.cancel()
+        _active_job.join(5.0)
+        _active_job = None
+
+
+classes = (
+    BSPLAB_OT_build_render,
+)

@@ -1,0 +1,116 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "BSP Lab" tab of the 3D Viewport's sidebar (N panel)."""
+
+import bpy
+
+from . import backend, camera, operators, properties, stats
+
+# `UILayout.progress` was added in Blender 4.0; older versions get a
+# read-only slider instead.
+HAS_PROGRESS_BAR = "progress" in bpy.types.UILayout.bl_rna.functions
+
+
+# The sidebar is narrow: shorter labels than the properties' names.
+SHORT_LABELS = {
+    "cluster_iterations": "Iterations",
+    "cluster_sample": "Sample",
+    "ize_candidates": "Candidates",
+    "traversal_cost": "Traversal",
+    "intersect_cost": "Intersection",
+    "empty_bonus": "Empty",
+    "general_cost": "General",
+    "max_duplication": "Duplication",
+}
+
+
+class BSPLabPanel:
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "BSP Lab"
+
+
+class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
+    bl_label = "BSP Lab"
+    bl_idname = "BSPLAB_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.bsplab
+
+        if backend.core_or_none() is None:
+            box = layout.box()
+            box.label(text="Core module 'bsplab' not installed", icon='ERROR')
+
+        layout.prop(settings, "method")
+        methods = backend.methods()
+        params = methods.get(settings.method, {}).get("params", ())
+        col = layout.column(align=True)
+        for name in properties.BUILD_OPTIONS:
+            # Threads are drawn below with the render settings.
+            if name not in params or name == "threads":
+                continue
+            if name in SHORT_LABELS:
+                col.prop(settings, name, text=SHORT_LABELS[name])
+            else:
+                col.prop(settings, name)
+
+        layout.separator()
+        col = layout.column()
+        col.prop(settings, "preview_percentage", text="Preview")
+        width, height = camera.preview_size(context.scene.render, settings.preview_percentage)
+        col.label(text="{} x {} px".format(width, height))
+        col.prop(settings, "render_mode")
+        col.prop(settings, "threads")
+        col.prop(settings, "cull")
+        # Full width: the split layout would cut the checkbox's label short.
+        row = layout.row()
+        row.use_property_split = False
+        row.prop(settings, "compare_with_embree")
+
+        layout.separator()
+        self.draw_button(context, layout)
+
+    @staticmethod
+    def draw_button(context, layout):
+        job = operators.active_job()
+        if job is None:
+            layout.operator(operators.BSPLAB_OT_build_render.bl_idname, icon='RENDER_STILL')
+            return
+        # Read from the job, not from a property: writing one every tick
+        # would redraw all of Blender's editors.
+        fraction = job.fraction()
+        text = "Building & Rendering {:.0%}".format(fraction)
+        if HAS_PROGRESS_BAR:
+            layout.progress(factor=fraction, type='BAR', text=text)
+        else:
+            layout.label(text=text, icon='TIME')
+        layout.label(text="Esc to cancel")
+
+
+class BSPLAB_PT_stats(BSPLabPanel, bpy.types.Panel):
+    bl_label = "Statistics"
+    bl_idname = "BSPLAB_PT_stats"
+    bl_parent_id = "BSPLAB_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        sections = stats.sections(context.scene.bsplab.stats)
+        if not sections:
+            layout.label(text="Press Build & Render", icon='INFO')
+            return
+        for title, rows in sections:
+            box = layout.box()
+            box.label(text=title)
+            col = box.column(align=True)
+            for label, text in rows:
+                row = col.split(factor=0.5)
+                row.label(text=label)
+                row.label(text=text)
+
+
+classes = (
+    BSPLAB_PT_main,
+    BSPLAB_PT_stats,
+)

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# The Blender demo: Build & Render through the add-on, headless, on the bpy
+# 4.2 module (set up like the tests: .venv-bpy42/ and build/blender-deps/).
+#
+#   blender_tests/demo_in_blender.sh [PROJECT_PYTHON] [-- DEMO_ARGS...]
+#
+# DEMO_ARGS go to addon/demo_headless.py (default: --out out/blender_demo.png).
+# With a Blender binary instead:
+#   BSPLAB_PYTHONPATH=build/blender-deps blender -b --factory-startup \
+#       --python addon/demo_headless.py -- --out out/blender_demo.png
+
+set -u -o pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+
+PY="${PYTHON:-$REPO/.venv/bin/python}"
+if [ $# -gt 0 ] && [ "$1" != "--" ]; then PY="$1"; shift; fi
+[ "${1:-}" = "--" ] && shift
+[ $# -gt 0 ] || set -- --out out/blender_demo.png
+
+. "$REPO/blender_tests/blender_env.sh"
+check_python
+ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
+build_extension || die "addon/build_extension.py failed"
+install_deps || die "could not install the wheels into $DEPS"
+
+mkdir -p out
+PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
+    "$REPO/.venv-bpy42/bin/python" addon/demo_headless.py "$@"

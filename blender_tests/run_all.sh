@@ -1,0 +1,115 @@
+#!/usr/bin/env bash
+# Run the add-on's test suite on every supported Blender:
+#   1. bpy 4.2.23 (pip module, in-process pytest)
+#   2. bpy 5.0.1  (pip module, in-process pytest)
+#   3. Debian's Blender 3.4.1 binary (pytest inside Blender)
+#
+#   blender_tests/run_all.sh [PROJECT_PYTHON]
+#
+# PROJECT_PYTHON (default: $PYTHON, else .venv/bin/python) is a Python 3.11
+# that can build core/ (scikit-build-core, nanobind). The script
+# - creates or reuses .venv-bpy42/ and .venv-bpy50/ (git-ignored) with bpy,
+#   numpy < 2 and pytest;
+# - builds the bsplab wheel and the extension zip (addon/build_extension.py,
+#   which also validates the zip with Blender's own tool);
+# - installs the bsplab and embreex wheels into build/blender-deps/, put on
+#   the path of each run (PYTHONPATH, or BSPLAB_PYTHONPATH inside Blender),
+#   so the extension test can check that the zip alone brings the core;
+# - apt-installs Debian's blender, python3-numpy and python3-pytest unless
+#   they are already there;
+# - with BSPLAB_GUI_CHECK=1, also drives the modal operator (worker thread,
+#   progress, Esc) in a real Blender window under Xvfb (gui_check.py).
+# Exits non-zero if any run fails.
+
+set -u -o pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$REPO"
+
+PY="${1:-${PYTHON:-$REPO/.venv/bin/python}}"
+# shellcheck source=blender_tests/blender_env.sh
+. "$REPO/blender_tests/blender_env.sh"
+check_python
+
+ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
+ensure_bpy_venv "$REPO/.venv-bpy50" 5.0.1 || die "could not set up bpy 5.0.1"
+build_extension || die "addon/build_extension.py failed"
+install_deps || die "could not install the wheels into $DEPS"
+
+export BSPLAB_STRICT=1 BSPLAB_EXTENSION_ZIP="$ZIP"
+declare -a RESULTS=()
+STATUS=0
+
+LOGS="$(mktemp -d)"
+trap 'rm -rf "$LOGS"' EXIT
+
+record() {  # NAME RC
+    if [ "$2" -eq 0 ]; then RESULTS+=("$1: passed"); else RESULTS+=("$1: FAILED (exit $2)"); STATUS=1; fi
+}
+
+count() {  # WORD: the sum of "N WORD" over pytest's closing lines
+    grep -hE '^=+ .* in [0-9.]+s' "$LOGS"/*.log 2>/dev/null \
+        | grep -oE "[0-9]+ $1" | awk '{ s += $1 } END { print s + 0 }'
+}
+
+# --- bpy module runs ---------------------------------------------------------
+
+for venv in .venv-bpy42 .venv-bpy50; do
+    log "pytest on $venv"
+    USER_DIR="$(mktemp -d)"
+    PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$USER_DIR" \
+        "$REPO/$venv/bin/python" -m pytest blender_tests -p no:cacheprovider -ra 2>&1 \
+        | tee "$LOGS/${venv#.}.log"
+    record "$("$REPO/$venv/bin/python" -c 'import importlib.metadata as m; print("bpy", m.version("bpy"))')" "${PIPESTATUS[0]}"
+    rm -rf "$USER_DIR"
+done
+
+# --- Debian's Blender binary ---------------------------------------------------
+
+SUDO_CMD=""
+[ "$(id -u)" -eq 0 ] || SUDO_CMD="sudo"
+export DEBIAN_FRONTEND=noninteractive
+
+if command -v blender >/dev/null && /usr/bin/python3 -c 'import numpy, pytest' 2>/dev/null; then
+    echo "blender, python3-numpy and python3-pytest already installed"
+else
+    log "installing Debian's blender"
+    $SUDO_CMD apt-get update -q && $SUDO_CMD apt-get install -y -q blender python3-numpy python3-pytest \
+        || die "apt-get install blender failed"
+fi
+
+BLENDER_VERSION="$(blender --version 2>/dev/null | head -n 1)"
+log "pytest inside $BLENDER_VERSION"
+USER_DIR="$(mktemp -d)"
+BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$USER_DIR" \
+    blender --background --factory-startup -noaudio --python-exit-code 1 \
+    --python blender_tests/run_in_blender.py 2>&1 | tee "$LOGS/blender.log"
+record "$BLENDER_VERSION" "${PIPESTATUS[0]}"
+rm -rf "$USER_DIR"
+
+# --- optional: the modal operator in a real window ---------------------------
+
+if [ "${BSPLAB_GUI_CHECK:-0}" = 1 ]; then
+    if ! command -v xvfb-run >/dev/null || ! command -v xdotool >/dev/null; then
+        log "installing xvfb and xdotool"
+        $SUDO_CMD apt-get install -y -q xvfb xdotool imagemagick || die "apt-get install xvfb failed"
+    fi
+    log "modal Build & Render in a window (Xvfb)"
+    GUI_OUT="$REPO/build/gui_check"
+    rm -rf "$GUI_OUT"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
+        xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \
+        --python blender_tests/gui_check.py -- "$GUI_OUT" > "$LOGS/gui.txt" 2>&1
+    rc=$?
+    cat "$GUI_OUT/gui_check.json" 2>/dev/null || tail -n 30 "$LOGS/gui.txt"
+    record "GUI check ($BLENDER_VERSION, Xvfb)" "$rc"
+fi
+
+log "summary"
+printf '  %s\n' "${RESULTS[@]}"
+# One closing line over the three runs (a failed run may have no counts:
+# STATUS is what decides).
+FAILED=$(( $(count failed) + $(count error) ))
+[ "$STATUS" -eq 0 ] || [ "$FAILED" -gt 0 ] || FAILED=1
+echo "blender_tests: $(count passed) passed, $FAILED failed, $(count skipped) skipped"
+exit "$STATUS"

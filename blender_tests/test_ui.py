@@ -1,0 +1,114 @@
+"""The sidebar panels, drawn into a recording layout (no UI in background)."""
+
+import json
+import types
+
+import bpy
+import pytest
+
+
+class RecordingLayout:
+    """Stands in for `UILayout`: records what is drawn, checks property names."""
+
+    def __init__(self, log=None):
+        self.log = log if log is not None else []
+        self.use_property_split = False
+        self.use_property_decorate = True
+        self.enabled = True
+
+    def _child(self, *_args, **_kwargs):
+        return RecordingLayout(self.log)
+
+    column = row = box = split = _child
+
+    def prop(self, data, name, text=None, **kwargs):
+        assert name in data.bl_rna.properties, name
+        self.log.append(("prop", name))
+
+    def label(self, text="", **kwargs):
+        self.log.append(("label", text))
+
+    def operator(self, idname, **kwargs):
+        self.log.append(("operator", idname))
+
+    def progress(self, factor=0.0, type='BAR', text=""):
+        self.log.append(("progress", factor))
+
+    def separator(self, **kwargs):
+        pass
+
+
+def draw(panel_class):
+    layout = RecordingLayout()
+    panel = types.SimpleNamespace(layout=layout, draw_button=getattr(panel_class, "draw_button", None))
+    panel_class.draw(panel, bpy.context)
+    return layout.log
+
+
+def test_main_panel(addon, core, empty_scene):
+    log = draw(addon.ui.BSPLAB_PT_main)
+    props = [name for kind, name in log if kind == "prop"]
+    assert props[0] == "method"
+    params = core.methods()[empty_scene.bsplab.method]["params"]
+    for name in ("traversal_cost", "intersect_cost", "empty_bonus", "max_depth", "leaf_size",
+                 "leaf_boxes"):
+        assert (name in props) == (name in params)
+    for name in ("preview_percentage", "render_mode", "compare_with_embree", "threads", "cull"):
+        assert name in props
+    assert ("operator", "bsplab.build_render") in log
+    assert ("label", "80 x 60 px") not in log  # factory resolution, not the test scene's
+
+
+def test_main_panel_while_running(addon, empty_scene, monkeypatch):
+    job = types.SimpleNamespace(fraction=lambda: 0.25)
+    monkeypatch.setattr(addon.operators, "_active_job", job)
+    log = draw(addon.ui.BSPLAB_PT_main)
+    assert ("operator", "bsplab.build_render") not in log
+    assert ("label", "Esc to cancel") in log
+    if addon.ui.HAS_PROGRESS_BAR:
+        assert ("progress", 0.25) in log
+    else:
+        # Blender < 4.0 has no progress bar widget: a label says how far.
+        assert ("label", "Building & Rendering 25%") in log
+
+
+def test_stats_panel(addon, empty_scene):
+    assert draw(addon.ui.BSPLAB_PT_stats) == [("label", "Press Build & Render")]
+    empty_scene.bsplab.stats_json = json.dumps({
+        "scene": {"triangles": 12, "objects": 1, "instances": 1},
+        "build": {"build_seconds": 0.5, "nodes": 7, "leaves": 4, "empty_leaves": 1,
+                  "max_depth": 3, "mean_leaf_depth": 2.5, "mean_leaf_size": 3.0,
+                  "max_leaf_size": 5, "references": 15, "duplication": 1.25,
+                  "bytes": 4096, "method": "kd"},
+        "render": {"seconds": 0.01, "rays_per_second": 2.5e6, "mean_steps": 4.0,
+                   "mean_tests": 2.0, "hits": 10, "width": 4, "height": 3},
+        "embree": {"available": False, "message": "embreex is not installed"},
+    })
+    texts = [text for kind, text in draw(addon.ui.BSPLAB_PT_stats) if kind == "label"]
+    for expected in ("Build Time", "500.0 ms", "Nodes", "7", "Leaves", "4", "Empty Leaves", "1",
+                     "Tris / Leaf", "3.00", "Max Leaf Tris", "5", "References", "15",
+                     "Duplication", "1.25x", "Memory", "4.0 KiB", "Render Time", "10.0 ms",
+                     "Rays/s", "2.50 M", "Steps / Ray", "4.00", "Tests / Ray", "2.00",
+                     "embreex is not installed"):
+        assert expected in texts
+
+
+@pytest.mark.parametrize("agreement", [1.0, 0.99])
+def test_stats_embree_rows(addon, agreement):
+    rows = dict(addon.stats.embree_rows({
+        "available": True, "bsplab_seconds": 0.02, "embree_seconds": 0.01, "time_ratio": 2.0,
+        "compare": {"rays": 100, "agree": int(agreement * 100), "agreement": agreement,
+                    "grazing": 1}}))
+    assert rows["Time Ratio"] == "2.00x Embree"
+    assert rows["Agreement"] == "{:.4%}".format(agreement)
+    assert rows["Disagreeing"] == str(100 - int(agreement * 100))
+    assert rows["At Edges"] == "1"
+
+
+def test_panel_shows_the_methods_own_params(addon, core, empty_scene):
+    for method, info in core.methods().items():
+        empty_scene.bsplab.method = method
+        props = [name for kind, name in draw(addon.ui.BSPLAB_PT_main) if kind == "prop"]
+        for name in addon.properties.BUILD_OPTIONS:
+            expected = name in info["params"] or name == "threads"
+            assert (name in props) == expected, (method, name)
