@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 # against what the add-on meets.
 DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4"
 
-.PHONY: all venv core demo demo-core test test-core test-blender bench bench-family addon scenes clean
+.PHONY: all venv core demo demo-core test test-core test-blender bench bench-family bench-cull addon scenes clean
 
 all: demo
 
@@ -47,6 +47,9 @@ bench: core
 
 bench-family: core
 	$(BIN)/python -m bsplab bench-family --out docs/bsp_benchmark.md
+
+bench-cull: core
+	$(BIN)/python -m bsplab bench-cull --out docs/cull_benchmark.md
 
 addon: core
 	$(BIN)/python addon/build_extension.py

@@ -74,7 +74,7 @@ if command -v blender >/dev/null && /usr/bin/python3 -c 'import numpy, pytest' 2
     echo "blender, python3-numpy and python3-pytest already installed"
 else
     log "installing Debian's blender"
-    $SUDO_CMD apt-get update -q && $SUDO_CMD apt-get install -y -q blender python3-numpy python3-pytest \
+    $SUDO_CMD env DEBIAN_FRONTEND=noninteractive apt-get update -q && $SUDO_CMD env DEBIAN_FRONTEND=noninteractive apt-get install -y -q blender python3-numpy python3-pytest \
         || die "apt-get install blender failed"
 fi
 

@@ -98,6 +98,17 @@ def cmd_family(args) -> int:
     return 1 if wrong else 0
 
 
+def cmd_cull(args) -> int:
+    from bsplab import bench_cull
+    rows = bench_cull.run(args.scenes, repeats=args.repeats, side=args.side)
+    if args.out:
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(bench_cull.markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:])))
+        print(f"written {out}")
+    return 0
+
+
 def cmd_calibrate(args) -> int:
     from bsplab import calibrate
     r = calibrate.run(args.scenes, repeats=args.repeats)
@@ -156,6 +167,14 @@ def main(argv=None) -> int:
     f.add_argument("--repeats", type=int, default=2)
     f.add_argument("--out", help="write Markdown here (and the rows as .csv beside it)")
     f.set_defaults(func=cmd_family)
+
+    u = sub.add_parser("bench-cull", help="leaf culling on vs off, per scene and method")
+    u.add_argument("--scenes", nargs="+",
+                   default=["sponza_dabrovic", "conference", "sibenik", "bunny"])
+    u.add_argument("--side", type=int, default=384)
+    u.add_argument("--repeats", type=int, default=3)
+    u.add_argument("--out", help="write Markdown here")
+    u.set_defaults(func=cmd_cull)
 
     c = sub.add_parser("calibrate", help="fit the SAH costs to this machine's trace times")
     c.add_argument("--scenes", nargs="+", default=["spheres", "room"])
