@@ -53,9 +53,7 @@ public:
     BspBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
                int threads)
         : tris_(tris), opt_(opt), progress_(progress), threads_(threads) {
-        spawn_depth_ = 0;
-        while ((1 << spawn_depth_) < threads) ++spawn_depth_;
-        if (threads > 1) spawn_depth_ += 2;
+        spawn_depth_ = spawn_depth(threads);
         // A general plane's crossing is computed as (d - n.o) / (n.dir) in
         // float, off by a few ulps of the coordinates; two planes with almost
         // equal normals can even swap order along a ray. References are
@@ -116,8 +114,8 @@ public:
             node->kind = 3;
             node->plane = {s.dir.x, s.dir.y, s.dir.z, s.pos};
         }
-        const double lbudget = std::floor(budget * double(s.n_left) / total_refs);
-        const double rbudget = budget - lbudget;
+        double lbudget, rbudget;
+        split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
         const uint64_t lid = Rng::mix(id, 1), rid = Rng::mix(id, 2);
         if (depth < spawn_depth_ && n > 4096) {
             auto right_task = std::async(std::launch::async, [&, r = std::move(right),

@@ -1,6 +1,7 @@
 // What every builder shares: input preparation, the intermediate pointer
 // tree, and the finishing pass (statistics, flattening to the compact layout).
 #pragma once
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -36,6 +37,22 @@ Prepared prepare(Tree& tree, const BuildOptions& options);
 // Fills tree.stats from the pointer tree, flattens it into tree.nodes/refs/
 // planes, and enforces the memory limit (std::bad_alloc).
 void finish(Tree& tree, const BuildNode& root);
+
+// Subtrees go to parallel tasks down to this depth: a few more tasks than
+// cores, for balance. Every task builds the same nodes it would serially.
+inline int spawn_depth(int threads) {
+    int depth = 0;
+    while ((1 << depth) < threads) ++depth;
+    return threads > 1 ? depth + 2 : 0;
+}
+
+// Each child may use the parent's reference budget in proportion to its
+// share, which bounds the tree's total references deterministically.
+inline void split_budget(double budget, double n_left, double n_right, double& left,
+                         double& right) {
+    left = std::floor(budget * n_left / (n_left + n_right));
+    right = budget - left;
+}
 
 // Adds a leaf's share to the build progress: a leaf at depth d completes
 // 2^-d of a binary tree, so the shares of all leaves sum to one.

@@ -69,9 +69,7 @@ public:
     KdBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
               int threads)
         : tris_(tris), opt_(opt), progress_(progress), threads_(threads) {
-        spawn_depth_ = 0;
-        while ((1 << spawn_depth_) < threads) ++spawn_depth_;
-        if (threads > 1) spawn_depth_ += 2;  // a few more tasks than cores, for balance
+        spawn_depth_ = spawn_depth(threads);
     }
 
     std::unique_ptr<BuildNode> build(NodeEvents ev, const Box& box, int depth, double budget) {
@@ -274,10 +272,8 @@ private:
         NodeEvents left, right;
         split_events(ev, s, lbox, rbox, side, left, right);
 
-        // Each child may use the parent's reference budget in proportion to
-        // its share, which bounds the total deterministically.
-        const double lbudget = std::floor(budget * double(s.n_left) / refs);
-        const double rbudget = budget - lbudget;
+        double lbudget, rbudget;
+        split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
 
         auto node = std::make_unique<BuildNode>();
         node->kind = s.axis;
