@@ -40,9 +40,10 @@ def test_node_kinds_follow_the_kd_variant(room, method):
     else:
         assert s["kd_nodes"] == 0 and s["general_nodes"] > 0
     assert s["plane_bytes"] == 16 * s["general_nodes"]
-    # Nodes, planes, triangles and the reference array (one-triangle leaves
+    # Nodes, planes, triangles, culling boxes and the reference array (one-triangle leaves
     # keep their triangle inline, so at most one reference per leaf entry).
-    rest = s["bytes"] - 8 * s["nodes"] - 16 * s["general_nodes"] - 36 * s["triangles"]
+    rest = (s["bytes"] - 8 * s["nodes"] - 16 * s["general_nodes"] - 36 * s["triangles"]
+            - s["box_bytes"])
     assert 0 <= rest <= 4 * s["references"] and rest % 4 == 0
 
 
