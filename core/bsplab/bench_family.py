@@ -61,6 +61,10 @@ def run(scene_names, methods, ks, repeats=2, side=384, ao_samples=1, log=print) 
             return t
 
         base = baseline()
+        kd_counts = {}
+        for w, (o, d) in loads.items():
+            h = kd.intersect(o, d, threads=1)
+            kd_counts[w] = (float(h["steps"].mean()), float(h["tests"].mean()))
         kd_build = min(build(tris, method="kd").stats["build_seconds"] for _ in range(2))
         scene_rows = []
         for method in methods:
@@ -97,6 +101,7 @@ def run(scene_names, methods, ks, repeats=2, side=384, ao_samples=1, log=print) 
                 row[f"embree_{w}_s"] = base[("embree", w)]
                 row[f"{w}_vs_kd"] = row[f"{w}_s"] / base[("kd", w)]
                 row[f"{w}_vs_embree"] = row[f"{w}_s"] / base[("embree", w)]
+                row[f"kd_{w}_steps"], row[f"kd_{w}_tests"] = kd_counts[w]
         rows += scene_rows
     return rows
 
@@ -131,7 +136,9 @@ def markdown(rows: list[dict], command: str) -> str:
             f"kd build {r0['kd_build_s']:.2f} s; kd primary {r0['kd_primary_s'] * 1e3:.1f} ms "
             f"and AO {r0['kd_ao_s'] * 1e3:.1f} ms for {r0['rays_primary']:,} / "
             f"{r0['rays_ao']:,} rays; Embree {r0['embree_primary_s'] * 1e3:.1f} / "
-            f"{r0['embree_ao_s'] * 1e3:.1f} ms.",
+            f"{r0['embree_ao_s'] * 1e3:.1f} ms. kd steps / tests per ray: primary "
+            f"{r0['kd_primary_steps']:.1f} / {r0['kd_primary_tests']:.2f}, AO "
+            f"{r0['kd_ao_steps']:.1f} / {r0['kd_ao_tests']:.2f}.",
             "",
             "| method | K | build s | build x kd | kd / general nodes | primary x kd | "
             "primary x Embree | steps (gen) | tests | AO x kd | AO x Embree | steps (gen) | "
