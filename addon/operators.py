@@ -201,11 +201,12 @@ class Job:
                           progress=self.build_progress, **inp.options)
         self._check_cancelled()
         image, render_stats = core.render(tree, cam, inp.camera.width, inp.camera.height,
-                                          mode=inp.mode, threads=inp.threads, cull=inp.cull,
+                                          mode=inp.mode, threads=inp.threads,
+                                          cull=inp.cull or inp.mode == "heat_culled",
                                           progress=self.render_progress)
         self._check_cancelled()
         render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
-                            mode=inp.mode, camera=inp.camera.name, cull=inp.cull)
+                            mode=inp.mode, camera=inp.camera.name)
         stats = {
             "scene": {"triangles": len(inp.triangles), "objects": inp.objects,
                       "instances": inp.instances},

@@ -173,8 +173,8 @@ class BSPLabSettings(bpy.types.PropertyGroup):
     cull: BoolProperty(
         name="Leaf Culling",
         description="In each leaf, skip the triangles whose box misses the box of the "
-                    "ray's segment there (needs leaf boxes)",
-        default=True,
+                    "ray's segment there (needs leaf boxes; always on for Heat Culled)",
+        default=False,
     )
     render_mode: EnumProperty(
         name="Mode",

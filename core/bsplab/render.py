@@ -76,8 +76,10 @@ def check_size(width, height) -> tuple[int, int]:
 
 
 def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "shaded", *,
-           threads: int = 0, cull: bool = True, progress=None) -> tuple[np.ndarray, dict]:
-    """Renders an (H, W, 4) float32 RGBA image (row 0 = top) and its statistics."""
+           threads: int = 0, cull: bool | None = None,
+           progress=None) -> tuple[np.ndarray, dict]:
+    """Renders an (H, W, 4) float32 RGBA image (row 0 = top) and its statistics.
+    `cull` (leaf culling) defaults to on for the heat_culled mode only."""
     if not isinstance(tree, Tree):
         raise TypeError(f"tree must be a bsplab.Tree, got {type(tree).__name__}")
     if not isinstance(camera, Camera):
@@ -85,6 +87,8 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
     width, height = check_size(width, height)
     if mode not in RENDER_MODES:
         raise ValueError(f"unknown render mode {mode!r}; modes: {', '.join(RENDER_MODES)}")
+    if cull is None:
+        cull = mode == "heat_culled"
     origins, directions = camera.rays(width, height)
     start = time.perf_counter()
     hits = tree.intersect(origins, directions, threads=threads, cull=cull, progress=progress)
@@ -106,5 +110,6 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
         "width": width,
         "height": height,
         "mode": mode,
+        "cull": bool(cull),
     }
     return image.reshape(height, width, 4), stats

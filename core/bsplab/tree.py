@@ -36,11 +36,13 @@ class Tree:
         """The raw node array; equal bytes mean an identical tree."""
         return self._tree.node_bytes()
 
-    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=True,
+    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=False,
                   progress=None) -> dict:
         """Closest hits of the rays; see docs/api.md for the returned arrays.
         `cull` skips, in each leaf, the triangles whose box misses the box of
-        the ray's segment there (when the tree keeps boxes: leaf_boxes)."""
+        the ray's segment there (when the tree keeps boxes: leaf_boxes). It
+        is off by default: on our SAH trees, whose leaves hold 2-5 triangles,
+        it removes many tests but rarely pays for itself (docs/cull_benchmark.md)."""
         if not isinstance(cull, (bool, np.bool_)):
             raise TypeError(f"cull must be True or False, got {cull!r}")
         o, d = checks.rays(origins, directions)

@@ -70,7 +70,7 @@ def test_clipped_boxes_agree_with_embree(scene_id, method):
     tree = bsplab.build(tris, method=method, leaf_boxes="clipped")
     emb = oracle.EmbreeTracer(tris)
     for o, d in (workloads.primary_rays(tris, 200, 200), workloads.random_rays(tris, 40_000)):
-        hits = tree.intersect(o, d)
+        hits = tree.intersect(o, d, cull=True)
         c = oracle.compare(hits, emb.intersect(o, d), triangles=tris, origins=o, directions=d)
         assert len(c["unexplained"]) == 0
         assert hits["culled"].sum() > 0
@@ -97,9 +97,20 @@ def test_no_boxes_means_no_culling():
 def test_clipped_boxes_cull_more_than_triangle_boxes():
     tris = scenes.generate("spheres")
     o, d = workloads.primary_rays(tris, 160, 120, scenes.default_camera("spheres"))
-    culled = {b: bsplab.build(tris, leaf_boxes=b).intersect(o, d)["culled"].sum()
+    culled = {b: bsplab.build(tris, leaf_boxes=b).intersect(o, d, cull=True)["culled"].sum()
               for b in ("triangle", "clipped")}
     assert culled["clipped"] > culled["triangle"]
+
+
+def test_culling_is_off_unless_asked_for():
+    tris = scenes.generate("spheres")
+    tree = bsplab.build(tris)
+    o, d = workloads.random_rays(tris, 5000)
+    assert tree.intersect(o, d)["culled"].sum() == 0
+    assert tree.intersect(o, d, cull=True)["culled"].sum() > 0
+    cam = scenes.default_camera("spheres")
+    assert bsplab.render(tree, cam, 32, 24, "heat_culled")[1]["cull"] is True
+    assert bsplab.render(tree, cam, 32, 24, "shaded")[1]["mean_culled"] == 0
 
 
 def test_bad_culling_options():
