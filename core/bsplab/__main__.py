@@ -148,7 +148,7 @@ def main(argv=None) -> int:
 
     b = sub.add_parser("bench", help="build and trace time against Embree")
     b.add_argument("--scenes", nargs="*", help="default: generated + all shared meshes")
-    b.add_argument("--methods", nargs="*", help="default: every method")
+    b.add_argument("--methods", nargs="*", help="default: kd")
     b.add_argument("--side", type=int, default=512, help="primary rays: side x side")
     b.add_argument("--rays", type=int, default=250_000, help="random rays")
     b.add_argument("--repeats", type=int, default=3)
