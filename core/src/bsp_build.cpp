@@ -6,7 +6,6 @@
 #include "bsp_build.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <future>
 #include <memory>
@@ -519,26 +518,15 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
 
 Tree build_bsp_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                     Progress* progress) {
-    const auto t0 = std::chrono::steady_clock::now();
-    Tree tree;
-    tree.triangles = std::move(triangles);
-    const Prepared prep = prepare(tree, options);
-    std::unique_ptr<BuildNode> root;
-    if (prep.live.empty()) {
-        root = std::make_unique<BuildNode>();
-    } else {
+    return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep) {
         NodeRefs refs;
         refs.refs.reserve(prep.live.size());
         for (uint32_t i : prep.live) refs.refs.push_back({i, 0, 0});
-        const int threads = resolve_threads(options.threads);
-        BspBuilder builder(tree.triangles, tree.options, progress, threads);
-        root = builder.build(std::move(refs), Cell::from_box(tree.bounds), 0, prep.ref_budget,
+        BspBuilder builder(tree.triangles, tree.options, progress,
+                           resolve_threads(options.threads));
+        return builder.build(std::move(refs), Cell::from_box(tree.bounds), 0, prep.ref_budget,
                              options.seed);
-    }
-    finish(tree, *root);
-    tree.stats.build_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return tree;
+    });
 }
 
 }  // namespace bsp

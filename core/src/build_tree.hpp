@@ -1,6 +1,7 @@
 // What every builder shares: input preparation, the intermediate pointer
 // tree, and the finishing pass (statistics, flattening to the compact layout).
 #pragma once
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <vector>
@@ -52,6 +53,24 @@ inline void split_budget(double budget, double n_left, double n_right, double& l
                          double& right) {
     left = std::floor(budget * n_left / (n_left + n_right));
     right = budget - left;
+}
+
+// Runs a builder: prepares the tree, lets build_root(tree, prepared) build
+// the pointer tree over the live triangles (not called when there are none),
+// then fills the statistics, flattens, and times the whole build.
+template <class BuildRoot>
+Tree run_builder(std::vector<Triangle> triangles, const BuildOptions& options,
+                 BuildRoot&& build_root) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Tree tree;
+    tree.triangles = std::move(triangles);
+    const Prepared prep = prepare(tree, options);
+    std::unique_ptr<BuildNode> root =
+        prep.live.empty() ? std::make_unique<BuildNode>() : build_root(tree, prep);
+    finish(tree, *root);
+    tree.stats.build_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return tree;
 }
 
 // Adds a leaf's share to the build progress: a leaf at depth d completes

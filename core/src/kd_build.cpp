@@ -7,7 +7,6 @@
 #include "kd_build.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <future>
 #include <memory>
@@ -40,15 +39,18 @@ struct NodeEvents {
     uint32_t count = 0;  // triangles in the node
 };
 
-void add_events(const Box& b, uint32_t tri, EventList* out) {
-    for (int k = 0; k < 3; ++k) {
-        if (b.lo[k] == b.hi[k]) {
-            out[k].push_back({b.lo[k], tri << 2 | kPlanar});
-        } else {
-            out[k].push_back({b.lo[k], tri << 2 | kStart});
-            out[k].push_back({b.hi[k], tri << 2 | kEnd});
-        }
+// A triangle's events along axis k: one planar event, or a start and an end.
+void add_axis_events(const Box& b, uint32_t tri, int k, EventList& out) {
+    if (b.lo[k] == b.hi[k]) {
+        out.push_back({b.lo[k], tri << 2 | kPlanar});
+    } else {
+        out.push_back({b.lo[k], tri << 2 | kStart});
+        out.push_back({b.hi[k], tri << 2 | kEnd});
     }
+}
+
+void add_events(const Box& b, uint32_t tri, EventList* out) {
+    for (int k = 0; k < 3; ++k) add_axis_events(b, tri, k, out[k]);
 }
 
 struct Split {
@@ -297,44 +299,22 @@ private:
 
 Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                    Progress* progress) {
-    const auto t0 = std::chrono::steady_clock::now();
-    Tree tree;
-    tree.triangles = std::move(triangles);
-    const Prepared prep = prepare(tree, options);
-    const auto& tris = tree.triangles;
-    NodeEvents root;
-    root.count = uint32_t(prep.live.size());
-
-    const int threads = resolve_threads(options.threads);
-    // The three axes' event lists are independent: fill and sort them in parallel.
-    parallel_for(3, 1, threads, [&](size_t k0, size_t k1) {
-        for (size_t k = k0; k < k1; ++k) {
-            EventList& e = root.axis[k];
-            e.reserve(2 * prep.live.size());
-            for (uint32_t i : prep.live) {
-                const Box b = tris[i].bounds();
-                if (b.lo[k] == b.hi[k]) {
-                    e.push_back({b.lo[k], i << 2 | kPlanar});
-                } else {
-                    e.push_back({b.lo[k], i << 2 | kStart});
-                    e.push_back({b.hi[k], i << 2 | kEnd});
-                }
+    return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep) {
+        NodeEvents root;
+        root.count = uint32_t(prep.live.size());
+        const int threads = resolve_threads(options.threads);
+        // The three axes' event lists are independent: fill and sort them in parallel.
+        parallel_for(3, 1, threads, [&](size_t k0, size_t k1) {
+            for (size_t k = k0; k < k1; ++k) {
+                EventList& e = root.axis[k];
+                e.reserve(2 * prep.live.size());
+                for (uint32_t i : prep.live) add_axis_events(tree.triangles[i].bounds(), i, int(k), e);
+                std::sort(e.begin(), e.end());
             }
-            std::sort(e.begin(), e.end());
-        }
+        });
+        KdBuilder builder(tree.triangles, tree.options, progress, threads);
+        return builder.build(std::move(root), tree.bounds, 0, prep.ref_budget);
     });
-
-    std::unique_ptr<BuildNode> root_node;
-    if (root.count == 0) {
-        root_node = std::make_unique<BuildNode>();
-    } else {
-        KdBuilder builder(tris, tree.options, progress, threads);
-        root_node = builder.build(std::move(root), tree.bounds, 0, prep.ref_budget);
-    }
-    finish(tree, *root_node);
-    tree.stats.build_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    return tree;
 }
 
 }  // namespace bsp
