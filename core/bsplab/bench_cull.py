@@ -13,8 +13,11 @@ import numpy as np
 from . import build, workloads
 from .bench import load
 
-CONFIGS = [("kd", {}), ("kd", {"intersect_cost": 0.3}), ("bsp_wn+kd", {"k": 6}),
-           ("bsp_cn+kd", {"k": 6}), ("rbsp+kd", {"k": 13}), ("bsp_ize+kd", {})]
+from .method_table import METHODS
+
+# kd twice (our SAH defaults, and large leaves like the source's trees), then
+# every other method at its default K.
+CONFIGS = [("kd", {}), ("kd", {"intersect_cost": 0.3})] + [(m, {}) for m in METHODS if m != "kd"]
 
 
 def trace_time(tree, o, d, cull, repeats):
@@ -26,7 +29,7 @@ def trace_time(tree, o, d, cull, repeats):
     return best, hits
 
 
-def run(scene_names, repeats=3, side=384, log=print) -> list[dict]:
+def run(scene_names, repeats=3, side=384, log=print, boxes_kinds=("triangle", "clipped")) -> list[dict]:
     rows = []
     for name in scene_names:
         tris = load(name)
@@ -34,7 +37,7 @@ def run(scene_names, repeats=3, side=384, log=print) -> list[dict]:
         kd = build(tris)
         ao, ad = workloads.ambient_occlusion_rays(tris, po, pd, kd.intersect(po, pd))
         for method, opts in CONFIGS:
-            for boxes in ("triangle", "clipped"):
+            for boxes in boxes_kinds:
                 tree = build(tris, method=method, leaf_boxes=boxes, **opts)
                 row = {"scene": name, "method": method, "options": opts, "boxes": boxes,
                        "box_bytes": tree.stats["box_bytes"], "bytes": tree.stats["bytes"]}
