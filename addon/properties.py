@@ -93,7 +93,7 @@ class BSPLabSettings(bpy.types.PropertyGroup):
         name="Directions",
         description="The fixed direction set of RBSP",
         items=(
-            ('auto', "Auto", "k-DOP directions for K = 3, 7, 9, 13, else a golden spiral"),
+            ('auto', "Auto", "k-DOP directions for K = 3, 7, 9, 13, else the axes plus a golden spiral"),
             ('spiral', "Spiral", "K directions on a golden spiral"),
             ('dop', "k-DOP", "The k-DOP directions (K = 3, 7, 9 or 13)"),
         ),

@@ -97,7 +97,7 @@ METHODS: dict[str, Method] = {
                "(Wald & Havran 2006).", "kd"),
         Method("rbsp", "RBSP",
                "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
-               "else a golden spiral) at every node.", "bsp", "fixed",
+               "else the three axes plus K - 3 golden-spiral points) at every node.", "bsp", "fixed",
                extra=_SWEEP + ("rbsp_set",), defaults={"k": 13}),
         Method("rbsp+kd", "RBSP ^Kd",
                "RBSP whose axis splits are fast kd nodes.", "bsp", "fixed", kd_nodes=True,

@@ -83,9 +83,11 @@ def core_options(method, opts: dict):
     o.kd_nodes = method.kd_nodes
     o.leaf_boxes = getattr(_core.LeafBoxes, opts["leaf_boxes"])
     if "rbsp_set" in opts:
-        dop = opts["rbsp_set"] == "dop" or (opts["rbsp_set"] == "auto"
-                                            and opts["k"] in (3, 7, 9, 13))
-        o.fixed_set = 1 if dop else 0
+        # auto: the k-DOP set where one exists, else the axes + K - 3 spiral points.
+        kind = opts["rbsp_set"]
+        if kind == "auto":
+            kind = "dop" if opts["k"] in (3, 7, 9, 13) else "axes+spiral"
+        o.fixed_set = {"spiral": 0, "dop": 1, "axes+spiral": 2}[kind]
     return o
 
 

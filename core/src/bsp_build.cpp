@@ -62,7 +62,7 @@ public:
         // plane position), as in the kd-tree, and need no fattening.
         eps_ = robust_epsilon(tris);
         if (opt.strategy == Strategy::Fixed) {
-            fixed_ = opt.fixed_set == 1 ? dop_directions(opt.k) : spiral_directions(opt.k);
+            fixed_ = fixed_directions(opt.fixed_set, opt.k);
         }
     }
 

@@ -55,6 +55,14 @@ std::vector<Vec3> dop_directions(int k) {
     return out;
 }
 
+std::vector<Vec3> fixed_directions(int set, int k) {
+    if (set == 1) return dop_directions(k);
+    if (set == 0 || k <= 3) return spiral_directions(k);
+    std::vector<Vec3> out = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    for (const Vec3& d : spiral_directions(k - 3)) out.push_back(d);
+    return out;
+}
+
 namespace {
 
 Vec3 random_direction(Rng& rng) {

@@ -38,6 +38,9 @@ Vec3 unit_normal(const Triangle& t);
 // the k-DOP directions with coordinates in {-1, 0, 1} for K = 3, 7, 9, 13.
 std::vector<Vec3> spiral_directions(int k);
 std::vector<Vec3> dop_directions(int k);  // empty when K is not 3, 7, 9 or 13
+// BuildOptions::fixed_set: 0 the spiral, 1 the k-DOP set, 2 the three axes
+// plus K - 3 spiral points (so that RBSP^Kd has kd nodes for any K >= 3).
+std::vector<Vec3> fixed_directions(int set, int k);
 
 // The directions a node sweeps. `tris` are the node's triangle indices.
 void node_directions(const BuildOptions& opt, const std::vector<Vec3>& fixed,

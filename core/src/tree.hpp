@@ -91,7 +91,7 @@ struct BuildOptions {
     int k = 3;                     // directions per node, the axes included for "+" methods
     bool plus_axes = false;        // "+": the three axes are among the K
     bool kd_nodes = false;         // ^Kd: axis splits become cheap kd nodes
-    int fixed_set = 0;             // RBSP: 0 golden spiral, 1 k-DOP standard directions
+    int fixed_set = 0;             // RBSP: 0 golden spiral, 1 k-DOP, 2 axes + spiral
     uint64_t seed = 1;
     float alpha = 0.1f;            // ^Kd: K_d,BSP = alpha K_i (n - 1) + K_d
     float general_cost = 2.0f;     // ^Kd fallback: the constant K_d,BSP

@@ -72,6 +72,17 @@ def test_rbsp_uses_its_fixed_set(room):
     assert a != bsplab.build(room, method="rbsp", k=7, rbsp_set="spiral").node_bytes()
 
 
+def test_rbsp_kd_has_kd_nodes_at_every_k(room):
+    # auto without a k-DOP set: the axes plus K - 3 spiral points, so the
+    # room's walls still get (fast) kd nodes; the pure spiral has no axis.
+    for k in (4, 6, 10):
+        auto = bsplab.build(room, method="rbsp+kd", k=k).stats
+        assert auto["kd_nodes"] > 0, k
+        assert max(auto["level_directions"]) <= k
+    assert auto["general_nodes"] > 0  # K = 10: seven spiral directions to choose from
+    assert bsplab.build(room, method="rbsp+kd", k=6, rbsp_set="spiral").stats["kd_nodes"] == 0
+
+
 @pytest.mark.parametrize("method", ["bsp_random", "bsp_wn+", "bsp_cn+kd", "bsp_ize"])
 def test_seed_decides_the_tree(room, method):
     a = bsplab.build(room, method=method, seed=1).node_bytes()
