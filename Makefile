@@ -6,9 +6,10 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 # numpy < 2 matches the numpy that Blender 4.2-5.0 ship, so the core is tested
 # against what the add-on meets.
-DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4"
+DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4" \
+          "matplotlib>=3.7" "dask[distributed]>=2024.1"
 
-.PHONY: all venv core demo demo-core test test-core test-blender bench bench-family bench-cull addon scenes clean
+.PHONY: all venv core demo demo-core test test-core test-blender bench bench-family bench-cull results results-quick addon scenes clean
 
 all: demo
 
@@ -50,6 +51,14 @@ bench-family: core
 
 bench-cull: core
 	$(BIN)/python -m bsplab bench-cull --out docs/cull_benchmark.md
+
+# docs/results.md and docs/results_plots/ from scratch (20-30 min on 2 cores).
+results: core
+	$(BIN)/python -m bsplab results
+
+# The same on the generated scenes in about a minute (out/results_quick/).
+results-quick: core
+	$(BIN)/python -m bsplab results --quick
 
 addon: core
 	$(BIN)/python addon/build_extension.py

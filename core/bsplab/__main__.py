@@ -1,4 +1,5 @@
-"""Command line: `python -m bsplab {demo,bench,scenes,methods}`."""
+"""Command line: `python -m bsplab {demo,bench,bench-family,bench-cull,experiment,report,results,
+calibrate,scenes,methods}`."""
 
 from __future__ import annotations
 
@@ -109,6 +110,46 @@ def cmd_cull(args) -> int:
     return 0
 
 
+def cmd_experiment(args) -> int:
+    from bsplab import experiment, report
+    overrides = {"executor": args.executor, "workers": args.workers,
+                 "scheduler": args.scheduler, "repetitions": args.repetitions}
+    spec = experiment.load_spec(args.spec, **overrides)
+    out = Path(args.out or Path("out") / "experiments" / spec.name)
+    rows = experiment.run(spec, out, fresh=args.fresh)
+    print(f"{len(rows)} rows in {out.with_suffix('.csv')} (run record: {out.with_suffix('.json')})")
+    if args.report:
+        write_report(rows, out, Path(args.report), spec.name)
+    wrong = sum(int(r["unexplained"]) for r in rows if r["unexplained"] not in ("", None))
+    if wrong:
+        print(f"error: {wrong} rays disagree with Embree", file=sys.stderr)
+    return 1 if wrong else 0
+
+
+def write_report(rows, results_path: Path, md: Path, title: str) -> None:
+    import json
+    from bsplab import report
+    meta_path = results_path.with_suffix(".json")
+    meta = json.loads(meta_path.read_text()) if meta_path.exists() else None
+    plot_dir = md.parent / (md.stem + "_plots")
+    pngs = report.plots(rows, plot_dir)
+    md.parent.mkdir(parents=True, exist_ok=True)
+    md.write_text(report.markdown(rows, title, meta, pngs, relative_to=md.parent))
+    print(f"written {md} and {len(pngs)} plots in {plot_dir}")
+
+
+def cmd_report(args) -> int:
+    from bsplab import experiment
+    rows = experiment.read_rows(args.results)
+    write_report(rows, Path(args.results), Path(args.out), args.title)
+    return 0
+
+
+def cmd_results(args) -> int:
+    from bsplab import results
+    return results.main(quick=args.quick, out=Path(args.out), fresh=not args.resume)
+
+
 def cmd_calibrate(args) -> int:
     from bsplab import calibrate
     r = calibrate.run(args.scenes, repeats=args.repeats)
@@ -176,6 +217,32 @@ def main(argv=None) -> int:
     u.add_argument("--out", help="write Markdown here")
     u.set_defaults(func=cmd_cull)
 
+    x = sub.add_parser("experiment", help="run an experiment spec (TOML or JSON), resumable")
+    x.add_argument("spec", help="spec file; see docs/experiments.md")
+    x.add_argument("--out", help="results path (.csv and .json written); default "
+                                 "out/experiments/<name>")
+    x.add_argument("--fresh", action="store_true", help="discard earlier results at --out")
+    x.add_argument("--executor", choices=["process", "dask", "inline"])
+    x.add_argument("--workers", type=int, help="parallel cells")
+    x.add_argument("--scheduler", help="dask scheduler address (default: a local cluster)")
+    x.add_argument("--repetitions", type=int)
+    x.add_argument("--report", help="also write a Markdown report (and plots) here")
+    x.set_defaults(func=cmd_experiment)
+
+    r = sub.add_parser("report", help="Markdown tables and PNG plots of experiment results")
+    r.add_argument("results", help="results .csv of `experiment`")
+    r.add_argument("--out", required=True, help="Markdown file; plots go to <name>_plots/")
+    r.add_argument("--title", default="Experiment results")
+    r.set_defaults(func=cmd_report)
+
+    q = sub.add_parser("results", help="regenerate docs/results.md and its plots")
+    q.add_argument("--quick", action="store_true",
+                   help="small scenes and few cells (for CI, under 3 minutes)")
+    q.add_argument("--out", default="docs/results.md")
+    q.add_argument("--resume", action="store_true",
+                   help="keep the finished cells of an interrupted run")
+    q.set_defaults(func=cmd_results)
+
     c = sub.add_parser("calibrate", help="fit the SAH costs to this machine's trace times")
     c.add_argument("--scenes", nargs="+", default=["spheres", "room"])
     c.add_argument("--repeats", type=int, default=3)
@@ -191,7 +258,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, TypeError, FileNotFoundError) as e:
+    except (ValueError, TypeError, FileNotFoundError, RuntimeError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
 

@@ -8,6 +8,7 @@ with one structured-dtype `np.frombuffer` and no per-element Python loop.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Union
@@ -380,3 +381,63 @@ def write_ply(path: PathLike, vertices: np.ndarray, faces: np.ndarray) -> None:
         out.write(header.encode("ascii"))
         out.write(np.ascontiguousarray(v, dtype="<f4").tobytes())
         out.write(records.tobytes())
+
+
+def _export_script() -> Path:
+    """The add-on's export_scene.py: beside the checkout the package was
+    installed from (its .venv lives in it), or under $BSPLAB_ADDON_DIR."""
+    env = os.environ.get("BSPLAB_ADDON_DIR")
+    candidates = [Path(env)] if env else []
+    candidates += [p / "addon" for p in Path(__file__).resolve().parents]
+    candidates += [Path.cwd() / "addon"]
+    for c in candidates:
+        if (c / "export_scene.py").is_file():
+            return c / "export_scene.py"
+    raise FileNotFoundError("reading a .blend needs the BSP Lab add-on's export_scene.py: "
+                            "set BSPLAB_ADDON_DIR to the checkout's addon folder")
+
+
+def load_blend(path: PathLike, blender: str | None = None, timeout: float = 600.0):
+    """Triangles `(N,3,3)` float32 and the scene camera (a `Camera`, or None
+    when the scene has none) of a .blend's evaluated scene, exactly as the
+    add-on extracts them. Runs Blender: `blender` or $BSPLAB_BLENDER names a
+    Blender executable (default `blender` on the PATH) or a Python with the
+    `bpy` module."""
+    import shutil
+    import subprocess
+    import tempfile
+
+    from .camera import Camera
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no .blend file {path}")
+    exe = blender or os.environ.get("BSPLAB_BLENDER") or "blender"
+    if shutil.which(exe) is None:
+        raise FileNotFoundError(f"reading {path.name} needs Blender: {exe!r} is not an "
+                                "executable (set BSPLAB_BLENDER to a Blender or a Python "
+                                "with the bpy module)")
+    script = _export_script()
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "scene.npz"
+        if Path(exe).name.startswith("python"):
+            cmd = [exe, str(script), "--", str(out), str(path.resolve())]
+        else:
+            cmd = [exe, "-b", str(path.resolve()), "--factory-startup", "-noaudio",
+                   "--python-exit-code", "1", "--python", str(script), "--", str(out)]
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        if r.returncode != 0 or not out.exists():
+            tail = "\n".join((r.stdout + r.stderr).strip().splitlines()[-8:])
+            raise RuntimeError(f"Blender could not export {path.name} (exit {r.returncode}):\n"
+                               f"{tail}")
+        data = dict(np.load(out))
+    tris = np.ascontiguousarray(data["triangles"], dtype=np.float32).reshape(-1, 3, 3)
+    if len(tris) == 0:
+        raise ValueError(f"{path.name}: the scene has no visible mesh triangles")
+    camera = None
+    if "camera_lens" in data:
+        kw = {k[len("camera_"):]: data[k] for k in data
+              if k.startswith("camera_") and k not in ("camera_size", "camera_error")}
+        kw = {k: (v if k == "matrix_world" else v.item()) for k, v in kw.items()}
+        camera = Camera(**kw)
+    return tris, camera

@@ -1,0 +1,233 @@
+"""The experiment runner on the tiny generated room: rows, resume, executors,
+reports, bad specs. Timings are not checked (they are noise at this size);
+counters and row bookkeeping are."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+
+import pytest
+
+from bsplab import experiment, executors, report
+from bsplab.experiment import SpecError
+
+pytest.importorskip("embreex", reason="the runner times Embree beside every trace")
+
+TINY = {
+    "name": "tiny",
+    "scenes": ["room"],
+    "methods": ["kd", "bsp_wn+kd", "bsp_ize+kd"],
+    "ks": [3, 5],
+    "seeds": [1, 2],
+    "repetitions": 2,
+    "workloads": ["primary", "ao"],
+    "width": 24,
+    "height": 16,
+    "executor": "inline",
+}
+# kd: 1 cell; bsp_wn+kd: 2 K x 2 seeds; bsp_ize+kd: no K, 2 seeds.
+TINY_CELLS = 1 + 4 + 2
+
+
+class SpyExecutor(executors.InlineExecutor):
+    """Inline, recording the cells it runs; can stop after `stop_after` cells."""
+
+    def __init__(self, stop_after=None):
+        self.ran, self.stop_after = [], stop_after
+
+    def map(self, spec, todo, scene_data=None, progress=None):
+        for cell, rows in super().map(spec, todo, scene_data, progress):
+            if self.stop_after is not None and len(self.ran) == self.stop_after:
+                raise KeyboardInterrupt
+            self.ran.append(cell)
+            yield cell, rows
+
+
+def spec(**changes):
+    return experiment.make_spec({**TINY, **changes})
+
+
+def read_csv(path):
+    with open(path.with_suffix(".csv"), newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_rows_cover_every_cell_and_workload(tmp_path):
+    rows = experiment.run(spec(), tmp_path / "r", quiet=True)
+    assert len(rows) == TINY_CELLS * 2
+    on_disk = read_csv(tmp_path / "r")
+    assert len(on_disk) == len(rows)
+    keys = {(r["method"], r["k"], r["seed"], r["workload"]) for r in on_disk}
+    assert ("kd", "", "1", "primary") in keys and ("kd", "", "2", "ao") not in keys
+    assert ("bsp_wn+kd", "5", "2", "ao") in keys and ("bsp_ize+kd", "", "2", "primary") in keys
+    for r in on_disk:
+        assert r["unexplained"] == "0", r  # every tree agrees with Embree
+        assert len(r["trace_s"].split()) == 2 and len(r["embree_s"].split()) == 2
+        assert int(r["rays"]) == (24 * 16 if r["workload"] == "primary" else int(r["rays"]))
+        assert float(r["steps"]) > 0 and int(r["hits"]) > 0
+    kd = next(r for r in on_disk if r["method"] == "kd")
+    assert kd["general_nodes"] == "0" and int(kd["kd_nodes"]) > 0
+    # K = 3 with the axes is a kd-tree: no general nodes.
+    wn3 = next(r for r in on_disk if r["method"] == "bsp_wn+kd" and r["k"] == "3")
+    assert wn3["general_nodes"] == "0"
+    meta = json.loads((tmp_path / "r.json").read_text())
+    assert meta["spec"]["methods"] == TINY["methods"]
+    assert meta["runs"][-1]["machine"]["cores"] >= 1
+    assert meta["runs"][-1]["machine"]["versions"]["embreex"]
+    assert meta["runs"][-1]["cells_after"] == TINY_CELLS
+
+
+def test_resume_runs_only_the_missing_cells(tmp_path):
+    first = SpyExecutor(stop_after=3)
+    with pytest.raises(KeyboardInterrupt):
+        experiment.run(spec(), tmp_path / "r", executor=first, quiet=True)
+    assert len(read_csv(tmp_path / "r")) == 3 * 2
+    second = SpyExecutor()
+    rows = experiment.run(spec(), tmp_path / "r", executor=second, quiet=True)
+    assert len(second.ran) == TINY_CELLS - 3
+    assert not {c.key for c in first.ran} & {c.key for c in second.ran}
+    assert len(rows) == len(read_csv(tmp_path / "r")) == TINY_CELLS * 2
+    third = SpyExecutor()
+    experiment.run(spec(), tmp_path / "r", executor=third, quiet=True)
+    assert third.ran == []  # nothing left to do
+    meta = json.loads((tmp_path / "r.json").read_text())
+    assert [r["cells_before"] for r in meta["runs"]] == [0, 3, TINY_CELLS]
+
+
+def test_a_cut_last_line_is_run_again(tmp_path):
+    experiment.run(spec(), tmp_path / "r", quiet=True)
+    path = (tmp_path / "r").with_suffix(".csv")
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[:-1] + [lines[-1][:20]]) + "\n")  # killed mid-write
+    spy = SpyExecutor()
+    experiment.run(spec(), tmp_path / "r", executor=spy, quiet=True)
+    assert len(spy.ran) == 1
+    assert len(read_csv(tmp_path / "r")) == TINY_CELLS * 2
+
+
+def test_another_spec_does_not_resume_into_old_results(tmp_path):
+    experiment.run(spec(methods=["kd"]), tmp_path / "r", quiet=True)
+    with pytest.raises(SpecError, match="different spec"):
+        experiment.run(spec(methods=["kd"], width=30), tmp_path / "r", quiet=True)
+    rows = experiment.run(spec(methods=["kd"], width=30), tmp_path / "r", fresh=True, quiet=True)
+    assert {r["rays"] for r in rows if r["workload"] == "primary"} == {str(30 * 16)}
+
+
+def test_process_pool_and_dask_give_the_same_counters(tmp_path):
+    small = dict(methods=["kd", "bsp_cn+kd"], ks=[4], seeds=[1], workloads=["ao"])
+    inline = experiment.run(spec(**small), tmp_path / "inline", quiet=True)
+    pool = experiment.run(spec(executor="process", workers=2, **small), tmp_path / "pool",
+                          quiet=True)
+    pytest.importorskip("distributed", reason="dask distributed is in the test dependencies")
+    dask = experiment.run(spec(executor="dask", workers=2, **small), tmp_path / "dask",
+                          quiet=True)
+
+    def counters(rows):
+        return sorted((r["method"], str(r["k"]), str(r["steps"]), str(r["tests"]),
+                       str(r["nodes"])) for r in rows)
+
+    assert len(inline) == 2
+    assert counters(inline) == counters(pool) == counters(dask)
+
+
+def test_report_renders_tables_and_plots(tmp_path):
+    rows = experiment.run(spec(), tmp_path / "r", quiet=True)
+    rows = read_csv(tmp_path / "r")
+    pngs = report.plots(rows, tmp_path / "plots")
+    names = {p.name for p in pngs}
+    assert {"time_primary.png", "tests_ao.png", "steps_primary.png", "build.png",
+            "levels.png"} <= names
+    for p in pngs:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 5000
+    md = report.markdown(rows, "Tiny", json.loads((tmp_path / "r.json").read_text()), pngs,
+                         relative_to=tmp_path)
+    assert "#### BSP wn+ ^Kd (`bsp_wn+kd`): render time as % of kd, primary rays" in md
+    assert "| K | room min | room med | room max |" in md
+    assert "| 3 | " in md and "| 5 | " in md  # the K rows
+    assert "room Kd | room BSP | room total" in md  # table 5.10 shape
+    assert "![time_primary](plots/time_primary.png)" in md
+    kd_row = next(line for line in md.splitlines() if line.startswith("| kd |  | 100.0"))
+    assert kd_row.endswith("| 0 |")  # no wrong hits
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"methods": ["kd", "bsp_magic"]}, "unknown method 'bsp_magic'"),
+    ({"methods": ["bsp_wn+"], "ks": [2]}, r"K = 2 is out of range for bsp_wn\+"),
+    ({"methods": ["rbsp"], "ks": [65]}, "K = 65 is out of range for rbsp"),
+    ({"methods": ["bsp_cn"], "method_ks": {"bsp_cn": [0]}}, "K = 0 is out of range"),
+    ({"scenes": ["no/such/file.ply"]}, "scene file no/such/file.ply does not exist"),
+    ({"scenes": ["not_a_scene"]}, "no scene 'not_a_scene'"),
+    ({"scenes": []}, "at least one scene"),
+    ({"workloads": ["shadow"]}, "workloads"),
+    ({"repetitions": 0}, "repetitions must be an integer in 1..1000"),
+    ({"width": 1.5}, "width must be an integer"),
+    ({"ks": "3..x"}, "ks: expected"),
+    ({"colour": "red"}, "unknown spec key"),
+    ({"executor": "cloud"}, "executor must be one of"),
+    ({"options": {"alpha": -1}}, "alpha"),
+    ({"options": {"sparkle": 1}}, "unknown build option"),
+])
+def test_bad_specs_say_what_is_wrong(changes, message):
+    with pytest.raises(SpecError, match=message):
+        experiment.make_spec({**TINY, **changes})
+
+
+def test_spec_files_and_the_command_line(tmp_path):
+    good = tmp_path / "good.toml"
+    good.write_text('name = "cli"\nscenes = ["room"]\nmethods = ["kd"]\nrepetitions = 1\n'
+                    'width = 8\nheight = 8\nworkloads = ["primary"]\nexecutor = "inline"\n')
+    out = tmp_path / "res"
+    r = subprocess.run([sys.executable, "-m", "bsplab", "experiment", str(good), "--out",
+                        str(out), "--report", str(tmp_path / "rep.md")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert len(read_csv(out)) == 1 and (tmp_path / "rep.md").exists()
+    assert "1/1 cells" in r.stderr  # the progress bar
+    bad = tmp_path / "bad.toml"
+    bad.write_text('scenes = ["room"]\nmethods = ["bsp_wn+kd"]\nks = "1..4"\n')
+    r = subprocess.run([sys.executable, "-m", "bsplab", "experiment", str(bad)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "K = 1 is out of range for bsp_wn+kd" in r.stderr
+    assert "Traceback" not in r.stderr
+    broken = tmp_path / "broken.toml"
+    broken.write_text("scenes = [room\n")
+    r = subprocess.run([sys.executable, "-m", "bsplab", "experiment", str(broken)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "not valid TOML" in r.stderr
+    r = subprocess.run([sys.executable, "-m", "bsplab", "experiment", str(tmp_path / "no.toml")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "does not exist" in r.stderr
+    # Scene files are relative to the spec file.
+    rel = tmp_path / "rel.json"
+    rel.write_text(json.dumps({"scenes": ["meshes/missing.ply"], "methods": ["kd"]}))
+    with pytest.raises(SpecError, match="meshes/missing.ply does not exist"):
+        experiment.load_spec(rel)
+
+
+def test_results_quick_regenerates_its_page(tmp_path):
+    from bsplab import results
+    assert results.main(quick=True, out=tmp_path / "results.md") == 0
+    md = (tmp_path / "results.md").read_text()
+    assert "# Results: the BSP family against kd and Embree (quick)" in md
+    assert "#### room — primary rays" in md and "#### spheres — ao rays" in md
+    assert (tmp_path / "results_quick_plots" / "time_ao.png").exists()
+    assert len(read_csv(tmp_path / "data" / "results_quick")) == 2 * 2 * (1 + 2 + 3 + 3 + 1)
+
+
+def test_thesis_comparison_lines_up_methods_and_scenes():
+    from bsplab import results
+    rows = []
+    for method, k, t in (("kd", "", "2"), ("bsp_wn+kd", "6", "1.5")):
+        for w in ("primary", "ao"):
+            rows.append({"scene": "sponza_dabrovic", "triangles": "10", "method": method,
+                         "k": k, "seed": "1", "workload": w, "rays": "4", "trace_s": t,
+                         "embree_s": "1", "build_s": "1", "steps": "1", "tests": "1",
+                         "kd_nodes": "1", "general_nodes": "0", "bytes": "1",
+                         "unexplained": "0", "level_directions": "1", "level_planes": "1"})
+    lines = results.thesis_comparison(rows)
+    row = next(line for line in lines if line.startswith("| bsp_wn+kd | 6 |"))
+    # thesis Sponza K=6: 80.364; ours 1.5 / 2 = 75 %.
+    assert row == "| bsp_wn+kd | 6 | 80 | 75 | 75 |"
