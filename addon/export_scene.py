@@ -45,3 +45,8 @@ def main(argv):
 
 
 main(sys.argv)
+if not bpy.app.binary_path:
+    # The bpy module (4.2) can crash in its exit-time destructors; the file
+    # is written, so leave before they run.
+    sys.stdout.flush()
+    os._exit(0)

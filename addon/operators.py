@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The Build & Render operator.
+"""The Build & Render and Sweep K operators.
 
 The work is split in three so that bpy data is only touched on the main
 thread: `read_scene()` copies everything the core needs into numpy arrays
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import backend, camera, extract, preview
+from . import backend, camera, extract, preview, sweep
 
 
 class UserError(Exception):
@@ -90,6 +90,34 @@ def read_scene(context, core):
         compare_with_embree=settings.compare_with_embree,
         scene_name=scene.name,
     )
+
+
+def read_sweep(context, core):
+    """The Sweep K job's input, read from the scene; raise UserError if unusable."""
+    scene = context.scene
+    settings = scene.bsplab
+    try:
+        methods = sweep.parse_methods(settings.sweep_methods, core.methods())
+        sweep.plan(methods, core.methods(), settings.sweep_k_min, settings.sweep_k_max)
+    except sweep.SweepError as ex:
+        raise UserError(str(ex)) from ex
+    depsgraph = context.evaluated_depsgraph_get()
+    try:
+        cam = camera.scene_camera(scene, depsgraph, settings.preview_percentage)
+    except camera.CameraError as ex:
+        raise UserError(str(ex)) from ex
+    geometry = extract.scene_triangles(depsgraph)
+    if geometry.triangle_count == 0:
+        raise UserError("No visible mesh triangles in the scene: nothing to sweep")
+    try:
+        importlib.import_module(core.__name__ + ".checks").triangles(geometry.triangles)
+    except (TypeError, ValueError) as ex:
+        raise UserError("BSP Lab cannot build the tree: {}".format(ex)) from ex
+    return sweep.SweepInput(
+        triangles=geometry.triangles, camera=cam, methods=methods,
+        k_min=settings.sweep_k_min, k_max=settings.sweep_k_max,
+        repetitions=settings.sweep_repetitions, workload=settings.sweep_workload,
+        scene_name=scene.name)
 
 
 # -----------------------------------------------------------------------------
@@ -173,6 +201,8 @@ def _plain(value):
 
 class Job:
     """Build + render + optional comparison, runnable on a worker thread."""
+
+    title = "Building & Rendering"
 
     def __init__(self, core, inp):
         self.core = core
@@ -291,11 +321,10 @@ def _set_job_state(context, running, progress=0.0):
 # The operator
 
 
-class BSPLAB_OT_build_render(bpy.types.Operator):
-    """Build the tree of the visible meshes and render the scene camera's view with it"""
+class JobOperator:
+    """Runs a job (see Job) modally on a worker thread when invoked from the UI,
+    synchronously from execute(). Subclasses make the job and apply its result."""
 
-    bl_idname = "bsplab.build_render"
-    bl_label = "Build & Render"
     bl_options = {'REGISTER'}
 
     _job = None
@@ -318,14 +347,21 @@ class BSPLAB_OT_build_render(bpy.types.Operator):
         self.report({'ERROR'}, message)
         return {'CANCELLED'}
 
+    def make_job(self, context, core):
+        raise NotImplementedError
+
+    def apply(self, context, scene, job):
+        """Write the finished job's result; return the operator's result set."""
+        raise NotImplementedError
+
     def _prepare(self, context):
-        """A Job ready to run, or raise UserError."""
+        """A job ready to run, or raise UserError."""
         try:
             core = backend.import_core()
         except backend.CoreMissing as ex:
             raise UserError(str(ex)) from ex
         try:
-            return Job(core, read_scene(context, core))
+            return self.make_job(context, core)
         except UserError:
             raise
         except Exception as ex:
@@ -337,17 +373,7 @@ class BSPLAB_OT_build_render(bpy.types.Operator):
     def _finish(self, context, scene, job):
         if job.error is not None:
             return self._fail(error_message(job.core, job.error))
-        try:
-            check_result(job.result)
-        except UserError as ex:
-            return self._fail(str(ex))
-        apply_result(scene, job.result)
-        stats = job.result["stats"]
-        self.report({'INFO'}, "BSP Lab: {} triangles, {} nodes, built in {:.3f} s, rendered in {:.3f} s"
-                    .format(stats["scene"]["triangles"], stats["build"].get("nodes", "?"),
-                            stats["build"].get("build_seconds", 0.0),
-                            stats["render"].get("seconds", 0.0)))
-        return {'FINISHED'}
+        return self.apply(context, scene, job)
 
     def execute(self, context):
         try:
@@ -423,6 +449,53 @@ class BSPLAB_OT_build_render(bpy.types.Operator):
         return self._finish(context, scene, job)
 
 
+class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
+    """Build the tree of the visible meshes and render the scene camera's view with it"""
+
+    bl_idname = "bsplab.build_render"
+    bl_label = "Build & Render"
+
+    def make_job(self, context, core):
+        return Job(core, read_scene(context, core))
+
+    def apply(self, context, scene, job):
+        try:
+            check_result(job.result)
+        except UserError as ex:
+            return self._fail(str(ex))
+        apply_result(scene, job.result)
+        stats = job.result["stats"]
+        self.report({'INFO'}, "BSP Lab: {} triangles, {} nodes, built in {:.3f} s, rendered in {:.3f} s"
+                    .format(stats["scene"]["triangles"], stats["build"].get("nodes", "?"),
+                            stats["build"].get("build_seconds", 0.0),
+                            stats["render"].get("seconds", 0.0)))
+        return {'FINISHED'}
+
+
+class BSPLAB_OT_sweep_k(JobOperator, bpy.types.Operator):
+    """Build and trace every chosen method at every K of the range on this scene, beside kd and Embree; show the table and plot"""
+
+    bl_idname = "bsplab.sweep_k"
+    bl_label = "Sweep K"
+
+    def make_job(self, context, core):
+        return sweep.SweepJob(core, read_sweep(context, core))
+
+    def apply(self, context, scene, job):
+        scene.bsplab.sweep_json = sweep.table_json(job.result)
+        preview.write_preview(job.result["plot"], name=sweep.PLOT_NAME)
+        table = job.result["table"]
+        best = min(((p["pct_kd"], m["name"], p["k"]) for m in table["methods"]
+                    if m["name"] != "kd" for p in m["points"]), default=None)
+        message = "BSP Lab Sweep K: {} trees".format(
+            sum(len(m["points"]) for m in table["methods"]))
+        if best is not None:
+            message += "; fastest {}{} at {:.0f}% of kd's time".format(
+                best[1], "" if best[2] is None else " K={}".format(best[2]), best[0])
+        self.report({'INFO'}, message)
+        return {'FINISHED'}
+
+
 def cancel_active_job():
     """Stop the running job (used on unregister); waits a little for it."""
     global _active_job
@@ -434,4 +507,5 @@ def cancel_active_job():
 
 classes = (
     BSPLAB_OT_build_render,
+    BSPLAB_OT_sweep_k,
 )

@@ -12,11 +12,11 @@ IMAGE_NAME = "BSP Lab Preview"
 COLORSPACE = "Non-Color"
 
 
-def _prepare_image(width, height):
-    """Get or create the preview image: generated, float, RGBA, width x height."""
-    image = bpy.data.images.get(IMAGE_NAME)
+def _prepare_image(width, height, name=IMAGE_NAME):
+    """Get or create the image block: generated, float, RGBA, width x height."""
+    image = bpy.data.images.get(name)
     if image is None:
-        return bpy.data.images.new(IMAGE_NAME, width, height, alpha=True, float_buffer=True)
+        return bpy.data.images.new(name, width, height, alpha=True, float_buffer=True)
     if image.source != 'GENERATED':
         # Saved to disk at some point: turn it back into a generated buffer,
         # which keeps the datablock (and the editors showing it).
@@ -31,11 +31,11 @@ def _prepare_image(width, height):
     return image
 
 
-def write_preview(rgba):
+def write_preview(rgba, name=IMAGE_NAME):
     """Store an (H, W, 4) image whose row 0 is the top; return the image block."""
     rgba = np.asarray(rgba, dtype=np.float32)
     height, width = rgba.shape[:2]
-    image = _prepare_image(width, height)
+    image = _prepare_image(width, height, name)
     try:
         image.colorspace_settings.name = COLORSPACE
     except TypeError:

@@ -200,6 +200,48 @@ class BSPLabSettings(bpy.types.PropertyGroup):
         default="",
     )
 
+    # Sweep K: the experiment on this scene (see sweep.py).
+    sweep_methods: StringProperty(
+        name="Methods",
+        description="Methods to sweep, separated by spaces (kd is always added as the "
+                    "reference)",
+        default="bsp_wn+kd bsp_cn+kd",
+    )
+    sweep_k_min: IntProperty(
+        name="K From", description="Smallest K of the sweep", default=3, min=1, max=64,
+    )
+    sweep_k_max: IntProperty(
+        name="K To", description="Largest K of the sweep", default=8, min=1, max=64,
+    )
+    sweep_repetitions: IntProperty(
+        name="Repetitions",
+        description="Traces per tree; the table shows their median (and min-max)",
+        default=3, min=1, max=50,
+    )
+    sweep_workload: EnumProperty(
+        name="Rays",
+        description="The rays each tree traces",
+        items=(
+            ('primary', "Camera", "Primary rays of the scene camera at the preview size"),
+            ('ao', "Ambient Occlusion", "One short cosine-weighted ray from each camera hit"),
+            ('diffuse', "Diffuse Bounce", "One full-length cosine-weighted ray from each hit"),
+        ),
+        default='primary',
+    )
+    sweep_json: StringProperty(
+        name="Sweep Results",
+        description="The last Sweep K's table, as JSON",
+        default="",
+    )
+
+    @property
+    def sweep(self):
+        """The last Sweep K's table as a dict (empty before the first sweep)."""
+        try:
+            return json.loads(self.sweep_json) if self.sweep_json else {}
+        except ValueError:
+            return {}
+
     @property
     def stats(self):
         """The last run's statistics as a dict (empty before the first run)."""

@@ -81,7 +81,7 @@ class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
         # Read from the job, not from a property: writing one every tick
         # would redraw all of Blender's editors.
         fraction = job.fraction()
-        text = "Building & Rendering {:.0%}".format(fraction)
+        text = "{} {:.0%}".format(job.title, fraction)
         if HAS_PROGRESS_BAR:
             layout.progress(factor=fraction, type='BAR', text=text)
         else:
@@ -110,7 +110,59 @@ class BSPLAB_PT_stats(BSPLabPanel, bpy.types.Panel):
                 row.label(text=text)
 
 
+class BSPLAB_PT_sweep(BSPLabPanel, bpy.types.Panel):
+    bl_label = "Sweep K"
+    bl_idname = "BSPLAB_PT_sweep"
+    bl_parent_id = "BSPLAB_PT_main"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.scene.bsplab
+        col = layout.column()
+        col.prop(settings, "sweep_methods", text="")
+        row = col.row(align=True)
+        row.prop(settings, "sweep_k_min", text="K")
+        row.prop(settings, "sweep_k_max", text="to")
+        col.prop(settings, "sweep_repetitions")
+        col.prop(settings, "sweep_workload")
+        if operators.active_job() is None:
+            col.operator(operators.BSPLAB_OT_sweep_k.bl_idname, icon='GRAPH')
+        table = settings.sweep
+        if not table.get("methods"):
+            return
+        scene = table.get("scene", {})
+        box = layout.box()
+        box.label(text="{:,} triangles, {:,} {} rays".format(
+            scene.get("triangles", 0), scene.get("rays", 0), scene.get("workload", "")))
+        box.label(text="Time as % of kd (median of {})".format(scene.get("repetitions", "?")))
+        for label, cells in sweep_rows(table):
+            row = box.split(factor=0.4)
+            row.label(text=label)
+            sub = row.row()
+            for text in cells:
+                sub.label(text=text)
+        box.label(text="Plot: image '{}'".format(sweep_plot_name()), icon='IMAGE_DATA')
+
+
+def sweep_plot_name():
+    from . import sweep
+    return sweep.PLOT_NAME
+
+
+def sweep_rows(table):
+    """(label, [% kd, tests/ray]) per method and K, for the panel."""
+    rows = [("method (colour)", ["% kd", "tests"])]
+    for m in table["methods"]:
+        for p in m["points"]:
+            k = "" if p["k"] is None else " K={}".format(p["k"])
+            rows.append(("{}{} ({})".format(m["name"], k, m["colour"]),
+                         ["{:.0f}".format(p["pct_kd"]), "{:.2f}".format(p["tests"])]))
+    return rows
+
+
 classes = (
     BSPLAB_PT_main,
     BSPLAB_PT_stats,
+    BSPLAB_PT_sweep,
 )

@@ -60,7 +60,7 @@ def test_main_panel(addon, core, empty_scene):
 
 
 def test_main_panel_while_running(addon, empty_scene, monkeypatch):
-    job = types.SimpleNamespace(fraction=lambda: 0.25)
+    job = types.SimpleNamespace(fraction=lambda: 0.25, title="Building & Rendering")
     monkeypatch.setattr(addon.operators, "_active_job", job)
     log = draw(addon.ui.BSPLAB_PT_main)
     assert ("operator", "bsplab.build_render") not in log
@@ -70,6 +70,14 @@ def test_main_panel_while_running(addon, empty_scene, monkeypatch):
     else:
         # Blender < 4.0 has no progress bar widget: a label says how far.
         assert ("label", "Building & Rendering 25%") in log
+    # The sweep panel hides its button while any job runs; the main panel
+    # shows that job's own title.
+    assert ("operator", "bsplab.sweep_k") not in draw(addon.ui.BSPLAB_PT_sweep)
+    job.title = "Sweeping K"
+    log = draw(addon.ui.BSPLAB_PT_main)
+    assert ("label", "Esc to cancel") in log
+    if not addon.ui.HAS_PROGRESS_BAR:
+        assert ("label", "Sweeping K 25%") in log
 
 
 def test_stats_panel(addon, empty_scene):
