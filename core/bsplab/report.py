@@ -309,8 +309,8 @@ def _plot_vs_k(res: Results, workload: str, value, ylabel: str, title: str, path
     return path
 
 
-def _plot_levels(res: Results, path: Path) -> Path | None:
-    """Distinct split directions and planes per tree level (thesis figs. 2.1 and 3.1)."""
+def _plot_levels(res: Results, path: Path, key: str, ylabel: str, title: str) -> Path | None:
+    """A per-level count (split planes, distinct directions; thesis figs. 2.1 and 3.1)."""
     plt = _pyplot()
     fig, axes = _grid(plt, len(res.scenes))
     w = res.workloads[0]
@@ -322,21 +322,21 @@ def _plot_levels(res: Results, path: Path) -> Path | None:
                 continue
             k = ks[len(ks) // 2]  # the middle K of the sweep
             g = res.get(scene, w, m, k)
-            dirs = g.levels("level_directions")
+            dirs = g.levels(key)
             if dirs:
                 ax.semilogy(range(len(dirs)), np.maximum(dirs, 1),
                             label=f"{m}" + ("" if k is None else f" K={k}"))
                 drawn = True
         ax.set_title(scene_label(scene), fontsize=10)
         ax.set_xlabel("tree level")
-        ax.set_ylabel("distinct split directions")
+        ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
     if not drawn:
         plt.close(fig)
         return None
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=min(5, len(labels)), fontsize=8)
-    fig.suptitle("Distinct split directions per tree level")
+    fig.suptitle(title)
     fig.tight_layout(rect=(0, 0.1, 1, 0.95))
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -367,5 +367,9 @@ def plots(rows: list[dict], out_dir, prefix: str = "") -> list[Path]:
     made.append(_plot_vs_k(res, res.workloads[0], res.build_x_kd, "build time, × kd",
                            "Build time vs K (1 = kd)", out_dir / f"{prefix}build.png",
                            kd_line=1.0))
-    made.append(_plot_levels(res, out_dir / f"{prefix}levels.png"))
+    made.append(_plot_levels(res, out_dir / f"{prefix}levels_directions.png",
+                             "level_directions", "distinct split directions",
+                             "Distinct split directions per tree level (middle K)"))
+    made.append(_plot_levels(res, out_dir / f"{prefix}levels_planes.png", "level_planes",
+                             "split planes", "Split planes per tree level (middle K)"))
     return [p for p in made if p is not None]

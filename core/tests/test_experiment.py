@@ -139,7 +139,7 @@ def test_report_renders_tables_and_plots(tmp_path):
     pngs = report.plots(rows, tmp_path / "plots")
     names = {p.name for p in pngs}
     assert {"time_primary.png", "tests_ao.png", "steps_primary.png", "build.png",
-            "levels.png"} <= names
+            "levels_directions.png", "levels_planes.png"} <= names
     for p in pngs:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 5000
     md = report.markdown(rows, "Tiny", json.loads((tmp_path / "r.json").read_text()), pngs,
