@@ -45,11 +45,11 @@ def areas(kind):
             if a.type == kind]
 
 
-def invoke():
+def invoke(operator="build_render"):
     window, area = areas('VIEW_3D')[0]
     region = next(r for r in area.regions if r.type == 'WINDOW')
     with bpy.context.temp_override(window=window, area=area, region=region):
-        return bpy.ops.bsplab.build_render('INVOKE_DEFAULT')
+        return getattr(bpy.ops.bsplab, operator)('INVOKE_DEFAULT')
 
 
 def press_escape():
@@ -71,7 +71,8 @@ def finish():
     report["ok"] = bool(
         report.get("image_size") and report.get("image_editor_shows_preview")
         and report.get("stats_unchanged_after_cancel") and not report.get("is_running_after")
-        and "Esc pressed" in report["events"])
+        and "Esc pressed" in report["events"]
+        and report.get("sweep_trees", 0) > 0 and report.get("sweep_plot_shown"))
     (OUT / "gui_check.json").write_text(json.dumps(report, indent=1))
     sys.stdout.flush()
     os._exit(0 if report["ok"] else 1)
@@ -171,6 +172,31 @@ def tick():
         return 1.5
     if phase == "cancelled":
         screenshot("cancelled")
+        # Sweep K through the modal path, on the light scene.
+        scene = bpy.context.scene
+        bpy.data.objects.remove(scene.objects["Heavy"])
+        s = scene.bsplab
+        s.sweep_methods, s.sweep_k_min, s.sweep_k_max, s.sweep_repetitions = (
+            "bsp_wn+kd bsp_cn+kd", 3, 6, 2)
+        result = invoke("sweep_k")
+        report["events"].append("sweep invoke -> {}".format(sorted(result)))
+        state.update(phase="sweeping", t0=time.time())
+        return 0.2
+    if phase == "sweeping":
+        if job is not None:
+            report["progress"].append(("sweep", round(time.time() - state["t0"], 2),
+                                       round(job.fraction(), 3)))
+            return 0.2
+        table = bpy.context.scene.bsplab.sweep
+        report["sweep_trees"] = sum(len(m["points"]) for m in table.get("methods", []))
+        report["sweep_seconds"] = round(time.time() - state["t0"], 2)
+        image = bpy.data.images.get("BSP Lab Sweep K")
+        editors = areas('IMAGE_EDITOR')
+        report["sweep_plot_shown"] = bool(editors) and editors[0][1].spaces.active.image == image
+        state["phase"] = "swept"
+        return 1.5
+    if phase == "swept":
+        screenshot("sweep")
         finish()
         return None
     return None
