@@ -20,7 +20,7 @@ import os
 import platform
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Callable, Iterable
 
@@ -30,27 +30,6 @@ from .method_table import MAX_K, METHODS
 
 WORKLOADS = ("primary", "ao", "diffuse")
 EXECUTORS = ("process", "dask", "inline")
-
-# Spec keys, their defaults and what they mean (docs/experiments.md has the same list).
-SPEC_DEFAULTS = {
-    "name": "experiment",
-    "scenes": [],            # generated names, shared mesh names, or .ply/.obj/.blend paths
-    "methods": ["kd"],       # names from the method table
-    "ks": [6],               # K values for methods that take K
-    "method_ks": {},         # per-method K lists overriding `ks`
-    "seeds": [1],            # one tree per seed (randomised methods differ)
-    "repetitions": 7,        # traces per tree; the thesis ran 7 and reported min/med/max
-    "workloads": ["primary", "ao"],
-    "width": 256,            # primary rays: width x height from the scene's camera
-    "height": 256,
-    "ao_samples": 1,         # incoherent rays per primary hit
-    "ao_distance": 0.1,      # AO ray length as a fraction of the scene box diagonal
-    "options": {},           # extra build options for every method
-    "build_threads": 0,      # 0: all cores
-    "executor": "process",
-    "workers": 1,            # parallel cells (more than 1 disturbs the timings)
-    "scheduler": "",         # dask: address of an existing scheduler; empty: a local cluster
-}
 
 ROW_FIELDS = [
     "scene", "triangles", "method", "k", "seed", "workload", "rays",
@@ -71,23 +50,24 @@ class SpecError(ValueError):
 
 @dataclass
 class Spec:
+    """The keys of a spec file, their defaults (docs/experiments.md explains them)."""
     name: str = "experiment"
-    scenes: list = field(default_factory=list)
+    scenes: list = field(default_factory=list)   # generated, shared, .ply/.obj/.blend
     methods: list = field(default_factory=lambda: ["kd"])
     ks: list = field(default_factory=lambda: [6])
-    method_ks: dict = field(default_factory=dict)
+    method_ks: dict = field(default_factory=dict)  # per-method K lists replacing `ks`
     seeds: list = field(default_factory=lambda: [1])
-    repetitions: int = 7
+    repetitions: int = 7          # traces per tree; the thesis ran 7 (min/med/max)
     workloads: list = field(default_factory=lambda: ["primary", "ao"])
-    width: int = 256
+    width: int = 256              # primary rays: width x height from the scene's camera
     height: int = 256
-    ao_samples: int = 1
-    ao_distance: float = 0.1
-    options: dict = field(default_factory=dict)
-    build_threads: int = 0
+    ao_samples: int = 1           # secondary rays per primary hit
+    ao_distance: float = 0.1      # AO ray length / the scene box's diagonal
+    options: dict = field(default_factory=dict)  # build options for every method
+    build_threads: int = 0        # 0: all cores
     executor: str = "process"
-    workers: int = 1
-    scheduler: str = ""
+    workers: int = 1              # parallel cells (more than 1 disturbs the timings)
+    scheduler: str = ""           # dask: a running scheduler's address; "": local cluster
 
     def fingerprint(self) -> str:
         """What decides the rows (not how they are run): resume only matches this."""
@@ -103,6 +83,10 @@ class Spec:
 
     def seeds_of(self, method: str) -> list:
         return list(self.seeds) if "seed" in METHODS[method].params else [self.seeds[0]]
+
+
+SPEC_DEFAULTS = {f.name: f.default if f.default_factory is MISSING else f.default_factory()
+                 for f in fields(Spec)}
 
 
 def _int_list(value, key: str) -> list[int]:
@@ -544,7 +528,8 @@ def run(spec: Spec, out, *, fresh: bool = False, executor=None,
     lets another thread cancel between and inside cells."""
     from . import executors
     results = ResultsFile(out, spec, fresh=fresh)
-    todo = [c for c in cells(spec) if c.key not in results.done()]
+    finished = results.done()
+    todo = [c for c in cells(spec) if c.key not in finished]
     total = len(cells(spec))
     done = total - len(todo)
     bar = None if quiet else ProgressBar(total)
