@@ -21,7 +21,7 @@ bl_info = {
 if "bpy" in locals():
     import importlib
     import sys as _sys
-    for _name in ("backend", "extract", "camera", "preview", "stats", "sweep",
+    for _name in ("backend", "extract", "camera", "preview", "stats", "jobs", "sweep",
                   "properties", "operators", "ui"):
         _module = _sys.modules.get("{}.{}".format(__name__, _name))
         if _module is not None:

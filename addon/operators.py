@@ -11,7 +11,6 @@ core releases the GIL, so a worker thread keeps Blender responsive), and
 import importlib
 import json
 import os
-import threading
 import time
 import traceback
 from dataclasses import dataclass
@@ -19,7 +18,7 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import backend, camera, extract, preview, sweep
+from . import backend, camera, extract, jobs, preview, sweep
 
 
 class UserError(Exception):
@@ -53,6 +52,23 @@ def active_job():
 # Main thread: read the scene
 
 
+def read_camera_and_geometry(context):
+    """The scene camera at the preview size and the visible triangles; raise
+    UserError when either is missing."""
+    depsgraph = context.evaluated_depsgraph_get()
+    try:
+        cam = camera.scene_camera(context.scene, depsgraph,
+                                  context.scene.bsplab.preview_percentage)
+    except camera.CameraError as ex:
+        raise UserError(str(ex)) from ex
+    geometry = extract.scene_triangles(depsgraph)
+    if geometry.triangle_count == 0:
+        if geometry.instances == 0:
+            raise UserError("No visible mesh in the scene: nothing to build a tree from")
+        raise UserError("The visible meshes are empty: they have no faces to build a tree from")
+    return cam, geometry
+
+
 def read_scene(context, core):
     """Copy everything the job needs out of bpy; raise UserError if unusable."""
     scene = context.scene
@@ -67,16 +83,7 @@ def read_scene(context, core):
     if "k" in params and min_k is not None and not min_k <= settings.k <= max_k:
         raise UserError("K must be in {}..{} for {}, not {}".format(
             min_k, max_k, info.get("label", method), settings.k))
-    depsgraph = context.evaluated_depsgraph_get()
-    try:
-        cam = camera.scene_camera(scene, depsgraph, settings.preview_percentage)
-    except camera.CameraError as ex:
-        raise UserError(str(ex)) from ex
-    geometry = extract.scene_triangles(depsgraph)
-    if geometry.triangle_count == 0:
-        if geometry.instances == 0:
-            raise UserError("No visible mesh in the scene: nothing to build a tree from")
-        raise UserError("The visible meshes are empty: they have no faces to build a tree from")
+    cam, geometry = read_camera_and_geometry(context)
     return JobInput(
         triangles=geometry.triangles,
         objects=geometry.objects,
@@ -101,14 +108,7 @@ def read_sweep(context, core):
         sweep.plan(methods, core.methods(), settings.sweep_k_min, settings.sweep_k_max)
     except sweep.SweepError as ex:
         raise UserError(str(ex)) from ex
-    depsgraph = context.evaluated_depsgraph_get()
-    try:
-        cam = camera.scene_camera(scene, depsgraph, settings.preview_percentage)
-    except camera.CameraError as ex:
-        raise UserError(str(ex)) from ex
-    geometry = extract.scene_triangles(depsgraph)
-    if geometry.triangle_count == 0:
-        raise UserError("No visible mesh triangles in the scene: nothing to sweep")
+    cam, geometry = read_camera_and_geometry(context)
     try:
         importlib.import_module(core.__name__ + ".checks").triangles(geometry.triangles)
     except (TypeError, ValueError) as ex:
@@ -199,26 +199,15 @@ def _plain(value):
     return value
 
 
-class Job:
+class Job(jobs.WorkerJob):
     """Build + render + optional comparison, runnable on a worker thread."""
 
     title = "Building & Rendering"
 
     def __init__(self, core, inp):
-        self.core = core
-        self.input = inp
+        super().__init__(core, inp)
         self.build_progress = core.Progress()
         self.render_progress = core.Progress()
-        self.cancelled = False
-        self.result = None
-        self.error = None
-        self._thread = None
-
-    def run(self):
-        try:
-            self.result = self._compute()
-        except BaseException as ex:  # Reported on the main thread.
-            self.error = ex
 
     def _check_cancelled(self):
         if self.cancelled:
@@ -248,20 +237,8 @@ class Job:
             self._check_cancelled()
         return {"image": np.asarray(image, dtype=np.float32), "stats": _plain(stats)}
 
-    def start(self):
-        # Daemon: quitting Blender mid-build must not wait for the core.
-        self._thread = threading.Thread(target=self.run, name="BSP Lab job", daemon=True)
-        self._thread.start()
-
-    def is_alive(self):
-        return self._thread is not None and self._thread.is_alive()
-
-    def join(self, timeout=None):
-        if self._thread is not None:
-            self._thread.join(timeout)
-
     def cancel(self):
-        self.cancelled = True
+        super().cancel()
         self.build_progress.cancel()
         self.render_progress.cancel()
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import camera
+from . import camera, jobs
 
 PLOT_NAME = "BSP Lab Sweep K"
 PLOT_SIZE = (480, 300)
@@ -85,26 +85,15 @@ def plan(methods, known, k_min, k_max):
     return out
 
 
-class SweepJob:
-    """Runs the sweep on a worker thread; same interface as operators.Job."""
+class SweepJob(jobs.WorkerJob):
+    """Runs the sweep on a worker thread."""
 
     title = "Sweeping K"
 
     def __init__(self, core, inp):
-        self.core = core
-        self.input = inp
+        super().__init__(core, inp)
         self.progress = core.Progress()
-        self.cancelled = False
-        self.result = None
-        self.error = None
-        self._thread = None
         self._done, self._total = 0, 1
-
-    def run(self):
-        try:
-            self.result = self._compute()
-        except BaseException as ex:  # Reported on the main thread.
-            self.error = ex
 
     def _on_progress(self, done, total, _label):
         self._done, self._total = done, total
@@ -135,20 +124,8 @@ class SweepJob:
                           "workload": inp.workload, "repetitions": inp.repetitions}
         return {"table": table, "plot": plot(table, *PLOT_SIZE)}
 
-    def start(self):
-        import threading
-        self._thread = threading.Thread(target=self.run, name="BSP Lab sweep", daemon=True)
-        self._thread.start()
-
-    def is_alive(self):
-        return self._thread is not None and self._thread.is_alive()
-
-    def join(self, timeout=None):
-        if self._thread is not None:
-            self._thread.join(timeout)
-
     def cancel(self):
-        self.cancelled = True
+        super().cancel()
         self.progress.cancel()
 
     def fraction(self):

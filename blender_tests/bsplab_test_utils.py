@@ -164,6 +164,15 @@ def evaluated_triangle_count(depsgraph):
     return total
 
 
+def put_nan_vertex(mesh):
+    """Make one coordinate of the mesh NaN (bad input for the core)."""
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co[4] = np.nan
+    mesh.vertices.foreach_set("co", co)
+    mesh.update()
+
+
 def image_pixels_top_down(image):
     """Pixels of an image block as (H, W, 4), row 0 at the top."""
     width, height = image.size

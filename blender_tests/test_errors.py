@@ -59,12 +59,7 @@ def test_empty_mesh(addon, core, empty_scene):
 
 
 def test_nan_mesh(addon, core, test_scene):
-    mesh = test_scene["ground"].data
-    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    mesh.vertices.foreach_get("co", co)
-    co[4] = np.nan
-    mesh.vertices.foreach_set("co", co)
-    mesh.update()
+    utils.put_nan_vertex(test_scene["ground"].data)
     message = assert_fails_cleanly(addon, test_scene["scene"], "BSP Lab cannot build the tree")
     assert "nan" in message.lower()
 

@@ -73,7 +73,7 @@ def test_zip_contents():
         names = archive.namelist()
         manifest = tomllib.loads(archive.read("blender_manifest.toml").decode())
     for module in ("__init__.py", "operators.py", "properties.py", "ui.py", "extract.py",
-                   "preview.py", "camera.py", "sweep.py"):
+                   "preview.py", "camera.py", "jobs.py", "sweep.py"):
         assert module in names
     wheels = manifest["wheels"]
     assert any(pathlib.Path(w).name.startswith("bsplab-") for w in wheels)

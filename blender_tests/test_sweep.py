@@ -95,12 +95,7 @@ def test_sweep_without_camera_or_meshes(addon, empty_scene):
 
 def test_sweep_rejects_nan_vertices(addon, test_scene):
     scene = test_scene["scene"]
-    mesh = test_scene["ground"].data
-    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
-    mesh.vertices.foreach_get("co", co)
-    co[4] = np.nan
-    mesh.vertices.foreach_set("co", co)
-    mesh.update()
+    utils.put_nan_vertex(test_scene["ground"].data)
     set_sweep(scene)
     with pytest.raises(RuntimeError, match="(?i)cannot build the tree.*nan"):
         bpy.ops.bsplab.sweep_k()

@@ -154,51 +154,47 @@ def summary_tables(res: Results) -> list[str]:
     return out
 
 
-def thesis_tables(res: Results, workload: str) -> list[str]:
-    """Tables 5.1-5.9: per method, rows K, columns scene x min/med/max (% of kd)."""
+def _method_k_tables(res: Results, title, column_names, cells_of) -> list[str]:
+    """Per method but kd: a table with rows K and, per scene, the columns
+    `column_names` filled by cells_of(group) (None: no such tree)."""
     out = []
     names = [scene_label(s) for s in res.scenes]
     for m in res.methods:
         if m == "kd":
             continue
-        out += [f"#### {METHODS[m].label} (`{m}`): render time as % of kd, {workload} rays", "",
-                "| K | " + " | ".join(f"{n} min | {n} med | {n} max" for n in names) + " |",
-                "|---:|" + "---:|" * (3 * len(names))]
+        out += [f"#### {METHODS[m].label} (`{m}`): {title}", "",
+                "| K | " + " | ".join(f"{n} {c}" for n in names for c in column_names) + " |",
+                "|---:|" + "---:|" * (len(column_names) * len(names))]
         for k in res.ks(m):
             cells = []
             for s in res.scenes:
-                g = res.get(s, workload, m, k)
-                p = res.pct_of_kd(g) if g else None
-                cells += ["—"] * 3 if p is None else [f"{p.min():.1f}", f"{np.median(p):.1f}",
-                                                      f"{p.max():.1f}"]
+                row = cells_of(s, m, k)
+                cells += ["—"] * len(column_names) if row is None else row
             out.append(f"| {'' if k is None else k} | " + " | ".join(cells) + " |")
         out.append("")
     return out
+
+
+def thesis_tables(res: Results, workload: str) -> list[str]:
+    """Tables 5.1-5.9: per method, rows K, columns scene x min/med/max (% of kd)."""
+    def cells(scene, method, k):
+        g = res.get(scene, workload, method, k)
+        p = res.pct_of_kd(g) if g else None
+        return None if p is None else [f"{p.min():.1f}", f"{np.median(p):.1f}", f"{p.max():.1f}"]
+    return _method_k_tables(res, f"render time as % of kd, {workload} rays",
+                            ("min", "med", "max"), cells)
 
 
 def node_tables(res: Results) -> list[str]:
     """Table 5.10: kd vs general (BSP) node counts per method and K."""
-    out = []
-    names = [scene_label(s) for s in res.scenes]
-    w = res.workloads[0]
-    for m in res.methods:
-        if m == "kd":
-            continue
-        out += [f"#### {METHODS[m].label} (`{m}`): interior nodes, Kd / BSP / total", "",
-                "| K | " + " | ".join(f"{n} Kd | {n} BSP | {n} total" for n in names) + " |",
-                "|---:|" + "---:|" * (3 * len(names))]
-        for k in res.ks(m):
-            cells = []
-            for s in res.scenes:
-                g = res.get(s, w, m, k)
-                if g is None:
-                    cells += ["—"] * 3
-                    continue
-                a, b = int(g.mean("kd_nodes")), int(g.mean("general_nodes"))
-                cells += [f"{a:,}", f"{b:,}", f"{a + b:,}"]
-            out.append(f"| {'' if k is None else k} | " + " | ".join(cells) + " |")
-        out.append("")
-    return out
+    def cells(scene, method, k):
+        g = res.get(scene, res.workloads[0], method, k)
+        if g is None:
+            return None
+        a, b = int(g.mean("kd_nodes")), int(g.mean("general_nodes"))
+        return [f"{a:,}", f"{b:,}", f"{a + b:,}"]
+    return _method_k_tables(res, "interior nodes, Kd / BSP / total", ("Kd", "BSP", "total"),
+                            cells)
 
 
 def markdown(rows: list[dict], title: str = "Experiment results", meta: dict | None = None,
@@ -249,6 +245,24 @@ def _grid(plt, n: int):
     return fig, list(axes.flat)
 
 
+def _save(plt, fig, axes, drawn: bool, title: str, path: Path) -> Path | None:
+    """One legend under the panels (each label once, whichever panel has it)."""
+    if not drawn:
+        plt.close(fig)
+        return None
+    legend = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            legend.setdefault(lab, h)
+    fig.legend(list(legend.values()), list(legend), loc="lower center",
+               ncol=min(5, len(legend)), fontsize=8, bbox_to_anchor=(0.5, 0.0))
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0.1, 1, 0.95))
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
 def _method_series(res: Results, scene: str, workload: str, value) -> dict:
     series = {}
     for m in res.methods:
@@ -292,21 +306,7 @@ def _plot_vs_k(res: Results, workload: str, value, ylabel: str, title: str, path
         ax.set_xlabel("K")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
-    if not drawn:
-        plt.close(fig)
-        return None
-    legend = {}
-    for ax in axes:  # every method once, whichever scene has it
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            legend.setdefault(lab, h)
-    handles, labels = list(legend.values()), list(legend)
-    fig.legend(handles, labels, loc="lower center", ncol=min(6, len(labels)), fontsize=8,
-               bbox_to_anchor=(0.5, 0.0))
-    fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.08, 1, 0.95))
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, axes, drawn, title, path)
 
 
 def _plot_levels(res: Results, path: Path, key: str, ylabel: str, title: str) -> Path | None:
@@ -331,16 +331,7 @@ def _plot_levels(res: Results, path: Path, key: str, ylabel: str, title: str) ->
         ax.set_xlabel("tree level")
         ax.set_ylabel(ylabel)
         ax.grid(alpha=0.3)
-    if not drawn:
-        plt.close(fig)
-        return None
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=min(5, len(labels)), fontsize=8)
-    fig.suptitle(title)
-    fig.tight_layout(rect=(0, 0.1, 1, 0.95))
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, axes, drawn, title, path)
 
 
 def plots(rows: list[dict], out_dir, prefix: str = "") -> list[Path]:
