@@ -35,7 +35,7 @@ ROW_FIELDS = [
     "scene", "triangles", "method", "k", "seed", "workload", "rays",
     "build_s", "nodes", "kd_nodes", "general_nodes", "leaves", "refs_per_tri", "bytes",
     "sah", "level_planes", "level_directions",
-    "trace_s", "embree_s", "steps", "general_steps", "tests", "hits", "unexplained",
+    "trace_s", "kd_s", "embree_s", "steps", "general_steps", "tests", "hits", "unexplained",
     "grazing", "embree_build_s",
 ]
 
@@ -320,36 +320,76 @@ def make_rays(spec: Spec, data: SceneData, embree) -> dict:
     return {w: out[w] for w in spec.workloads}
 
 
+_kd_cache: dict = {}
+
+
+def _build_options(spec: Spec, method: str, k=None, seed=None) -> dict:
+    opts = {key: v for key, v in spec.options.items() if key in METHODS[method].params}
+    if k is not None:
+        opts["k"] = k
+    if seed is not None and "seed" in METHODS[method].params:
+        opts["seed"] = seed
+    return opts
+
+
+def kd_reference(spec: Spec, scene: str, data: SceneData):
+    """The kd-tree every cell of a scene is timed against, built once per process."""
+    from . import build
+    key = (scene, id(data.triangles), json.dumps(_build_options(spec, "kd"), sort_keys=True))
+    if key not in _kd_cache:
+        _kd_cache.clear()
+        _kd_cache[key] = build(data.triangles, method="kd", threads=spec.build_threads,
+                               **_build_options(spec, "kd"))
+    return _kd_cache[key]
+
+
+def _timed(fn) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
 def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
              progress=None) -> list[dict]:
-    """Builds the cell's tree and traces every workload; one row per workload."""
-    from . import build, oracle
+    """Builds the cell's tree and traces every workload; one row per workload.
+
+    Every repetition traces the cell's tree, the scene's kd-tree and Embree
+    on the same rays, in a rotating order: each time has its kd and Embree
+    partner measured within a fraction of a second of it, which cancels
+    most of a shared machine's drift (that drift hits our memory-bound
+    traversals harder than Embree's, so kd is the closer partner)."""
+    from . import Cancelled, build, oracle
     data = scene_data or load_scene(cell.scene)
     tris = data.triangles
     embree = oracle.EmbreeTracer(tris) if oracle.available() and _embree_usable() else None
     rays = make_rays(spec, data, embree)
-    opts = {k: v for k, v in spec.options.items() if k in METHODS[cell.method].params}
-    if cell.k is not None:
-        opts["k"] = cell.k
-    if "seed" in METHODS[cell.method].params:
-        opts["seed"] = cell.seed
-    tree = build(tris, method=cell.method, threads=spec.build_threads, progress=progress, **opts)
+    tree = build(tris, method=cell.method, threads=spec.build_threads, progress=progress,
+                 **_build_options(spec, cell.method, cell.k, cell.seed))
+    kd = tree if cell.method == "kd" else kd_reference(spec, cell.scene, data)
     s = tree.stats
     rows = []
     for w, (o, d, tmax) in rays.items():
-        ref = embree.intersect(o, d, tmax=None if np.isinf(tmax) else tmax) if embree else None
-        trace_s, embree_s = [], []
-        for _ in range(spec.repetitions):
-            # Interleaved, so drift on a shared machine hits both alike.
-            start = time.perf_counter()
-            hits = tree.intersect(o, d, tmax=tmax, threads=1)
-            trace_s.append(time.perf_counter() - start)
-            if embree:
-                embree.intersect(o, d, tmax=None if np.isinf(tmax) else tmax)
-                embree_s.append(embree.last_seconds)
+        etmax = None if np.isinf(tmax) else tmax
+        ref = embree.intersect(o, d, tmax=etmax) if embree else None
+        times: dict[str, list] = {"ours": [], "kd": [], "embree": []}
+        out = {}
+        jobs = {"ours": lambda: out.__setitem__("hits", tree.intersect(o, d, tmax=tmax,
+                                                                       threads=1)),
+                "kd": lambda: kd.intersect(o, d, tmax=tmax, threads=1),
+                "embree": lambda: embree.intersect(o, d, tmax=etmax)}
+        order = ["ours", "kd"] + (["embree"] if embree else [])
+        for rep in range(spec.repetitions):
+            for name in order[rep % len(order):] + order[:rep % len(order)]:
+                if name == "kd" and kd is tree:
+                    continue  # the kd cell: its own times are the kd times
+                times[name].append(_timed(jobs[name]))
+                if name == "embree":
+                    times[name][-1] = embree.last_seconds
             if progress is not None and progress.cancelled:
-                from . import Cancelled
                 raise Cancelled("cancelled")
+        if kd is tree:
+            times["kd"] = times["ours"]
+        hits = out["hits"]
         unexplained = grazing = ""
         if ref is not None:
             c = oracle.compare(hits, ref, triangles=tris, origins=o, directions=d)
@@ -363,8 +403,9 @@ def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
             "sah": s["sah_cost"],
             "level_planes": " ".join(map(str, s["level_planes"])),
             "level_directions": " ".join(map(str, s["level_directions"])),
-            "trace_s": " ".join(f"{x:.6g}" for x in trace_s),
-            "embree_s": " ".join(f"{x:.6g}" for x in embree_s),
+            "trace_s": " ".join(f"{x:.6g}" for x in times["ours"]),
+            "kd_s": " ".join(f"{x:.6g}" for x in times["kd"]),
+            "embree_s": " ".join(f"{x:.6g}" for x in times["embree"]),
             "steps": float(hits["steps"].mean()),
             "general_steps": float(hits["general_steps"].mean()),
             "tests": float(hits["tests"].mean()),

@@ -43,6 +43,17 @@ class Group:
             out += [a / b for a, b in zip(t, e)] if len(e) == len(t) else t
         return np.array(out)
 
+    def paired_with_kd(self) -> np.ndarray | None:
+        """Per repetition: our time / the kd-tree's, traced right beside it."""
+        out = []
+        for r in self.rows:
+            t = [float(x) for x in r["trace_s"].split()]
+            k = [float(x) for x in r.get("kd_s", "").split()]
+            if len(k) != len(t):
+                return None
+            out += [a / b for a, b in zip(t, k)]
+        return np.array(out)
+
     def has_embree(self) -> bool:
         return all(r["embree_s"] for r in self.rows)
 
@@ -91,7 +102,12 @@ class Results:
         return self.get(scene, workload, "kd", None)
 
     def pct_of_kd(self, g: Group) -> np.ndarray | None:
-        """Render time as % of kd's, per repetition (the thesis's measure)."""
+        """Render time as % of kd's, per repetition (the thesis's measure):
+        against the kd traces paired with ours in the same cell, or else
+        through Embree's paired times and the kd cell's median."""
+        paired = g.paired_with_kd()
+        if paired is not None:
+            return 100.0 * paired
         kd = self.kd(g.scene, g.workload)
         if kd is None:
             return None
@@ -207,10 +223,11 @@ def markdown(rows: list[dict], title: str = "Experiment results", meta: dict | N
         out += [f"Machine: {mach.get('cpu', '?')}, {mach.get('cores', '?')} cores; "
                 f"versions {mach.get('versions', {})}. Spec fingerprint "
                 f"`{meta.get('fingerprint', '?')}`.", ""]
-    out += ["Times: each repetition's trace time over Embree's on the same rays, measured "
-            "right beside it in the same process (one thread each), then as a percentage of "
-            "the kd-tree's median of that ratio — below 100 is faster than kd. min/med/max "
-            "are over seeds × repetitions. Steps and tests per ray are exact. `wrong hits` "
+    out += ["Times (one thread each): every repetition traces the tree, the scene's "
+            "kd-tree and Embree on the same rays, one right after the other in a rotating "
+            "order; `time % kd` is the tree's time over its kd partner's (below 100 is "
+            "faster than kd), `× Embree` the median of its time over its Embree partner's. "
+            "min/med/max are over seeds × repetitions. Steps and tests per ray are exact. `wrong hits` "
             "counts rays whose answer differs from Embree's beyond ties and grazing edges.", ""]
     out += ["## Summary per scene", ""] + summary_tables(res)
     for w in res.workloads:
