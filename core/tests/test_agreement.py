@@ -4,7 +4,8 @@ The matrix: every method, at K = 2, 4, 8 where valid, on the small generated
 scenes; every method at K = 4 on the larger generated scene and on the
 shared Sponza and bunny meshes; kd and the ^Kd normal-based trees on every
 shared mesh. BSPLAB_TEST_MATRIX=full runs every method at every K on every
-scene (about an hour on this machine; see docs/testing.md)."""
+scene (200 cases beyond the default ones took about 1.5 h on this 2-core
+machine on 2026-11-23, all passed)."""
 
 from __future__ import annotations
 
