@@ -10,7 +10,6 @@ core releases the GIL, so a worker thread keeps Blender responsive), and
 
 import importlib
 import json
-import os
 import time
 import traceback
 from dataclasses import dataclass
@@ -129,26 +128,10 @@ def make_camera(core, spec):
 
 
 def foreign_embree_library():
-    """Name of an Embree library whose symbols Blender exports, if any.
-
-    Some Linux distributions' Blender builds (Debian's 3.4, for one) link a
-    shared libembree3 into the executable. Its `rtc*` symbols are then global,
-    embreex's bundled Embree 4 binds to them and crashes on the first query.
-    Libraries loaded privately (the bpy module's own Embree) do not clash.
-    """
-    import ctypes
-    try:
-        ctypes.CDLL(None).rtcNewDevice
-    except (AttributeError, OSError):
-        return None
-    try:
-        with open("/proc/self/maps") as maps:
-            paths = [line.rsplit(" ", 1)[-1] for line in maps.read().splitlines()]
-    except OSError:
-        paths = []
-    names = [os.path.basename(p) for p in paths
-             if os.path.basename(p).startswith("libembree") and "embreex" not in p]
-    return names[0] if names else "Embree library"
+    """Name of an Embree library Blender exports that clashes with embreex, if
+    any (see `bsplab.oracle.foreign_embree_library`)."""
+    core = backend.import_core()
+    return importlib.import_module(core.__name__ + ".oracle").foreign_embree_library()
 
 
 def compare_with_embree(core, tree, cam, inp):

@@ -343,12 +343,6 @@ def kd_reference(spec: Spec, scene: str, data: SceneData):
     return _kd_cache[key]
 
 
-def _timed(fn) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
-
-
 def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
              progress=None) -> list[dict]:
     """Builds the cell's tree and traces every workload; one row per workload.
@@ -361,7 +355,9 @@ def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
     from . import Cancelled, build, oracle
     data = scene_data or load_scene(cell.scene)
     tris = data.triangles
-    embree = oracle.EmbreeTracer(tris) if oracle.available() and _embree_usable() else None
+    # Not inside a Blender whose own Embree clashes with embreex's.
+    usable = oracle.available() and oracle.foreign_embree_library() is None
+    embree = oracle.EmbreeTracer(tris) if usable else None
     rays = make_rays(spec, data, embree)
     tree = build(tris, method=cell.method, threads=spec.build_threads, progress=progress,
                  **_build_options(spec, cell.method, cell.k, cell.seed))
@@ -371,25 +367,25 @@ def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
     for w, (o, d, tmax) in rays.items():
         etmax = None if np.isinf(tmax) else tmax
         ref = embree.intersect(o, d, tmax=etmax) if embree else None
-        times: dict[str, list] = {"ours": [], "kd": [], "embree": []}
-        out = {}
-        jobs = {"ours": lambda: out.__setitem__("hits", tree.intersect(o, d, tmax=tmax,
-                                                                       threads=1)),
-                "kd": lambda: kd.intersect(o, d, tmax=tmax, threads=1),
-                "embree": lambda: embree.intersect(o, d, tmax=etmax)}
-        order = ["ours", "kd"] + (["embree"] if embree else [])
+        tracers = {"ours": lambda: tree.intersect(o, d, tmax=tmax, threads=1)}
+        if kd is not tree:  # the kd cell's own times are its kd times
+            tracers["kd"] = lambda: kd.intersect(o, d, tmax=tmax, threads=1)
+        if embree:
+            tracers["embree"] = lambda: embree.intersect(o, d, tmax=etmax)
+        names = list(tracers)
+        times: dict[str, list] = {name: [] for name in ("ours", "kd", "embree")}
         for rep in range(spec.repetitions):
-            for name in order[rep % len(order):] + order[:rep % len(order)]:
-                if name == "kd" and kd is tree:
-                    continue  # the kd cell: its own times are the kd times
-                times[name].append(_timed(jobs[name]))
-                if name == "embree":
-                    times[name][-1] = embree.last_seconds
+            for name in names[rep % len(names):] + names[:rep % len(names)]:
+                start = time.perf_counter()
+                result = tracers[name]()
+                elapsed = time.perf_counter() - start
+                times[name].append(embree.last_seconds if name == "embree" else elapsed)
+                if name == "ours":
+                    hits = result
             if progress is not None and progress.cancelled:
                 raise Cancelled("cancelled")
         if kd is tree:
             times["kd"] = times["ours"]
-        hits = out["hits"]
         unexplained = grazing = ""
         if ref is not None:
             c = oracle.compare(hits, ref, triangles=tris, origins=o, directions=d)
@@ -414,16 +410,6 @@ def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
             "embree_build_s": embree.build_seconds if embree else "",
         })
     return rows
-
-
-def _embree_usable() -> bool:
-    """False inside a Blender whose own Embree clashes with embreex (see the add-on)."""
-    import ctypes
-    try:
-        ctypes.CDLL(None).rtcNewDevice
-    except (AttributeError, OSError):
-        return True
-    return False
 
 
 # -----------------------------------------------------------------------------

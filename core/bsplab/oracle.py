@@ -16,6 +16,31 @@ def available() -> bool:
     return True
 
 
+def foreign_embree_library():
+    """Name of an Embree library whose symbols the host process exports, if any.
+
+    Some Linux distributions' Blender builds (Debian's 3.4, for one) link a
+    shared libembree3 into the executable. Its `rtc*` symbols are then global,
+    embreex's bundled Embree 4 binds to them and crashes on the first query.
+    Libraries loaded privately (the bpy module's own Embree) do not clash.
+    """
+    import ctypes
+    import os
+
+    try:
+        ctypes.CDLL(None).rtcNewDevice
+    except (AttributeError, OSError):
+        return None
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = [line.rsplit(" ", 1)[-1] for line in maps.read().splitlines()]
+    except OSError:
+        paths = []
+    names = [os.path.basename(p) for p in paths
+             if os.path.basename(p).startswith("libembree") and "embreex" not in p]
+    return names[0] if names else "Embree library"
+
+
 class EmbreeTracer:
     """Closest-hit queries on Embree, returning the layout of Tree.intersect."""
 
