@@ -59,12 +59,16 @@ struct StackEntry {
 // The box of the ray's segment o + [t0, t1] d, padded so that no float error
 // of the end points (or of the traversal's plane crossings, which the
 // builders' fattening already bounds by tree.cull_pad / 2) can cull a hit.
+// An end point's error is relative to the terms it is summed from, |o| and
+// |t d|, not to the point itself: a ray from far away has |o| >> |o + t d|.
 struct SegmentBox {
     float lo[3], hi[3];
     void set(const float* org, const float* dir, float t0, float t1, float pad) {
+        const float tmag = std::max(std::fabs(t0), std::fabs(t1));
         for (int k = 0; k < 3; ++k) {
             const float a = org[k] + t0 * dir[k], b = org[k] + t1 * dir[k];
-            const float p = pad + (std::fabs(a) + std::fabs(b)) * (1.0f / (1 << 20));
+            const float p =
+                pad + (std::fabs(org[k]) + tmag * std::fabs(dir[k])) * (1.0f / (1 << 20));
             lo[k] = std::min(a, b) - p;
             hi[k] = std::max(a, b) + p;
         }
@@ -92,6 +96,21 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
     const Plane* planes = tree.planes.data();
     const uint32_t* refs = tree.refs.data();
     const Triangle* tris = tree.triangles.data();
+    // A general plane's crossing is off by a few roundings of the terms it
+    // is computed from: the plane offset (at most a few scene coordinates),
+    // n.o (at most |o|_1, n being unit) and t n.d (at most |t| |d|_1).
+    // The traversal widens it to [t - err, t + err] with
+    //   err = (cross_a + |t| cross_b) / |n.d|,
+    // so a ray from far away never skips a cell it passes through.
+    // kd nodes need no widening: their crossings are computed exactly like
+    // the scene box's and each other's, so their order is always consistent.
+    const float scene_scale = std::max({std::fabs(tree.bounds.lo.x), std::fabs(tree.bounds.lo.y),
+                                        std::fabs(tree.bounds.lo.z), std::fabs(tree.bounds.hi.x),
+                                        std::fabs(tree.bounds.hi.y), std::fabs(tree.bounds.hi.z)});
+    constexpr float kCrossUlps = 1.0f / (1 << 20);  // 16 roundings of 2^-24
+    const float cross_a =
+        kCrossUlps * (2.0f * scene_scale + std::fabs(o.x) + std::fabs(o.y) + std::fabs(o.z));
+    const float cross_b = kCrossUlps * (std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z));
     Mailbox mailbox;
     StackEntry stack[72];
     int top = 0;
@@ -102,44 +121,72 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
     const bool inline_single = tree.options.leaf_boxes != LeafBoxes::Clipped;
 
     for (;;) {
-        if (hit.t < t0) break;  // everything left lies beyond the closest hit
+        if (hit.t < t0) {
+            // This cell lies beyond the closest hit. Cells deeper in the stack
+            // usually lie beyond it too, but not always (a ray in a plane
+            // visits both sides over its whole range), so keep popping.
+            if (top == 0) break;
+            --top;
+            index = stack[top].node;
+            t0 = stack[top].tmin;
+            t1 = stack[top].tmax;
+            continue;
+        }
         const Node node = nodes[index];
         ++n_steps;
         if (!node.is_leaf()) {
-            // Both kinds reduce to: the plane's distance along the ray, and
-            // which child holds the origin.
-            float tplane;
-            bool below_first;
+            // Both kinds reduce to: where the ray crosses the plane, and
+            // which child it enters from. Before the crossing the ray is on
+            // the side it moves away from (the entry side), after it on the
+            // side it moves towards. Deciding by the direction's sign rather
+            // than by the origin's side keeps every case consistent,
+            // including rays parallel to the plane (t = +-inf) and rays lying
+            // in it (t = NaN: both sides).
+            float tplane, err = 0.0f;
+            bool down;  // the ray moves towards the child below the plane
             uint32_t above_child;
             if (node.is_kd()) {
                 const int axis = node.axis();
                 tplane = (node.split - org[axis]) * idir[axis];
-                below_first =
-                    org[axis] < node.split || (org[axis] == node.split && dir[axis] <= 0.0f);
+                down = std::signbit(dir[axis]);
                 above_child = node.kd_above();
             } else {
                 ++n_general;
                 const Plane& p = planes[node.first];
                 const float no = p.nx * org[0] + p.ny * org[1] + p.nz * org[2];
                 const float nd = p.nx * dir[0] + p.ny * dir[1] + p.nz * dir[2];
-                tplane = (p.d - no) / nd;
-                below_first = no < p.d || (no == p.d && nd <= 0.0f);
+                // A reciprocal, as for kd nodes and the scene box: a general
+                // node whose plane is an axis plane then gives bit-identical
+                // crossings to the box clip and to kd nodes at the same
+                // position. With a division, a wall lying in the scene box's
+                // face could be crossed an ulp before the box is entered, and
+                // its flat cell skipped.
+                const float inv_nd = 1.0f / nd;
+                tplane = (p.d - no) * inv_nd;
+                // Parallel to the plane (t = +-inf): on the origin's side for
+                // good, unless the origin lies within the error of the plane.
+                err = nd != 0.0f ? (cross_a + std::fabs(tplane) * cross_b) * std::fabs(inv_nd)
+                      : std::fabs(p.d - no) > cross_a ? 0.0f
+                                                      : std::numeric_limits<float>::quiet_NaN();
+                down = std::signbit(nd);
                 above_child = node.general_above();
             }
-            const uint32_t first = below_first ? index + 1 : above_child;
-            const uint32_t second = below_first ? above_child : index + 1;
-            if (tplane > t1 || tplane <= 0.0f) {
-                index = first;
-            } else if (tplane < t0) {
-                index = second;
-            } else if (tplane == tplane) {
-                stack[top++] = {second, tplane, t1};
-                index = first;
-                t1 = tplane;
-            } else {
+            const uint32_t entry = down ? above_child : index + 1;
+            const uint32_t exit = down ? index + 1 : above_child;
+            // The exact crossing lies in [t_lo, t_hi]; for kd nodes t_lo = t_hi.
+            const float t_lo = tplane - err, t_hi = tplane + err;
+            if (!(t_lo <= t_hi)) {
                 // NaN: the ray lies in the plane, and either side may hold its hit.
-                stack[top++] = {second, t0, t1};
-                index = first;
+                stack[top++] = {exit, t0, t1};
+                index = entry;
+            } else if (t_lo > t1) {
+                index = entry;  // crosses beyond this cell's range
+            } else if (t_hi < t0) {
+                index = exit;   // crossed before it (or behind the origin)
+            } else {
+                stack[top++] = {exit, std::max(t0, t_lo), t1};
+                index = entry;
+                t1 = std::min(t1, t_hi);
             }
             continue;
         }
@@ -171,7 +218,11 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
                     seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
             }
         }
-        if ((hit.prim >= 0 && hit.t <= t1) || top == 0) break;
+        // Early exit: the loop's head skips every cell that starts beyond
+        // the closest hit. (Not `hit.t <= t1` here: with widened crossings,
+        // and for rays in a plane, a cell still on the stack may start
+        // before this one ends.)
+        if (top == 0) break;
         --top;
         index = stack[top].node;
         t0 = stack[top].tmin;

@@ -28,6 +28,19 @@ struct ShearedRay {
     }
 };
 
+// The ray parameter at which o + t d meets the triangle's plane, in double.
+inline double plane_distance(const Triangle& tri, const Vec3& o, const Vec3& d) {
+    const double ax = double(tri.v[0].x), ay = double(tri.v[0].y), az = double(tri.v[0].z);
+    const double e1x = double(tri.v[1].x) - ax, e1y = double(tri.v[1].y) - ay,
+                 e1z = double(tri.v[1].z) - az;
+    const double e2x = double(tri.v[2].x) - ax, e2y = double(tri.v[2].y) - ay,
+                 e2z = double(tri.v[2].z) - az;
+    const double nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z,
+                 nz = e1x * e2y - e1y * e2x;
+    const double num = nx * (ax - o.x) + ny * (ay - o.y) + nz * (az - o.z);
+    return num / (nx * d.x + ny * d.y + nz * d.z);
+}
+
 struct TriangleHit {
     float t, u, v;
 };
@@ -56,12 +69,16 @@ inline bool intersect_triangle(const ShearedRay& r, const Triangle& tri, float t
     // The edge functions decide hit or miss (watertight). The distance comes
     // from the triangle's plane instead of the sheared depths: with large
     // coordinates and a nearby plane the sheared sum cancels badly, while
-    // N.(v0 - o) / N.d stays accurate (it is exact for axis-aligned planes).
-    const Vec3 N = cross(tri.v[1] - tri.v[0], tri.v[2] - tri.v[0]);
-    const float t = dot(N, A) / dot(N, r.dir);
-    if (!(t > tmin && t < tmax)) return false;
+    // N.(v0 - o) / N.d stays accurate. In double precision, because a
+    // sliver's float normal is off by the cancellation of two nearly
+    // parallel edges (a 3 x 0.009 triangle gave t off by 7e-4 in float);
+    // differences of floats are exact in double, so this costs a few
+    // multiplications per hit, not per test.
+    const double t = plane_distance(tri, r.org, r.dir);
+    const float tf = float(t);
+    if (!(tf > tmin && tf < tmax)) return false;
     const float inv = 1.0f / det;
-    hit.t = t;
+    hit.t = tf;
     hit.u = V * inv;
     hit.v = W * inv;
     return true;
