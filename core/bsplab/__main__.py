@@ -1,5 +1,5 @@
 """Command line: `python -m bsplab {demo,bench,bench-family,bench-cull,experiment,report,results,
-calibrate,scenes,methods}`."""
+agree,calibrate,scenes,methods}`."""
 
 from __future__ import annotations
 
@@ -150,6 +150,16 @@ def cmd_results(args) -> int:
     return results.main(quick=args.quick, out=Path(args.out), fresh=not args.resume)
 
 
+def cmd_agree(args) -> int:
+    import bsplab
+    from bsplab import agreement
+    methods = list(bsplab.methods()) if args.methods in (None, [], ["all"]) else args.methods
+    rows = agreement.run(args.scenes, methods, args.rays, k=args.k, seed=args.seed)
+    bad = sum(r["unexplained"] for r in rows)
+    print(f"\n{bad} unexplained disagreements in {len(rows)} scene x method x family cells")
+    return 1 if bad else 0
+
+
 def cmd_calibrate(args) -> int:
     from bsplab import calibrate
     r = calibrate.run(args.scenes, repeats=args.repeats)
@@ -242,6 +252,15 @@ def main(argv=None) -> int:
     q.add_argument("--resume", action="store_true",
                    help="keep the finished cells of an interrupted run")
     q.set_defaults(func=cmd_results)
+
+    a = sub.add_parser("agree", help="every method against Embree on the ray families "
+                                     "(outside-in, axis-parallel, vertices, edges, planes, ...)")
+    a.add_argument("--scenes", nargs="+", default=["room", "cube", "grids", "tilted"])
+    a.add_argument("--methods", nargs="*", help="default: all")
+    a.add_argument("--rays", type=int, default=5000, help="rays per family")
+    a.add_argument("--k", type=int, help="K for the methods that take one (default: theirs)")
+    a.add_argument("--seed", type=int, default=0)
+    a.set_defaults(func=cmd_agree)
 
     c = sub.add_parser("calibrate", help="fit the SAH costs to this machine's trace times")
     c.add_argument("--scenes", nargs="+", default=["spheres", "room"])

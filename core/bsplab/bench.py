@@ -36,7 +36,7 @@ class Row:
 
 
 def load(name: str) -> np.ndarray:
-    if name in scenes.NAMES:
+    if name in scenes.NAMES + scenes.PROBE_NAMES:
         return scenes.generate(name)
     path = Path(name)
     if not path.exists():

@@ -224,7 +224,63 @@ def _fan_scene() -> Mesh:
     return _merge(parts)
 
 
-_BUILDERS: dict[str, Callable[[], Mesh]] = {"room": _room, "spheres": _spheres, "fan": _fan_scene}
+def _rotation(axis, deg: float) -> np.ndarray:
+    """Rodrigues' rotation matrix about `axis`."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    t = math.radians(deg)
+    return np.eye(3) + math.sin(t) * k + (1 - math.cos(t)) * (k @ k)
+
+
+def _cube() -> Mesh:
+    """The unit cube [0, 1]^3, two triangles a face: every face lies in a face
+    of the scene box (issue 10's first repro)."""
+    return _box((0.5, 0.5, 0.5), (1.0, 1.0, 1.0), n=1)
+
+
+def _grids() -> Mesh:
+    """Stacked coplanar grids: three overlapping grids in the plane z = 0 with
+    different tessellations and offsets, a grid 1e-4 above them, a vertical
+    pair sharing the plane x = 0.25, and a closing box around it all."""
+    parts = [
+        _grid((-1, -1, 0), (2, 0, 0), (0, 2, 0), 8, 8),
+        _grid((-0.7, -0.9, 0), (1.5, 0, 0), (0, 1.3, 0), 5, 7),
+        _grid((-1, -1, 0), (0, 2, 0), (2, 0, 0), 3, 3),          # same plane, facing down
+        _grid((-0.5, -0.5, 1e-4), (1, 0, 0), (0, 1, 0), 4, 4),
+        _grid((0.25, -1, 0), (0, 2, 0), (0, 0, 1), 6, 3),
+        _grid((0.25, -0.5, 0.2), (0, 0, 0.5), (0, 1, 0), 2, 2),
+        _box((0, 0, 0.25), (2.0, 2.0, 1.5), n=2),
+    ]
+    return _merge(parts)
+
+
+def _tilted() -> Mesh:
+    """Boxes rotated about oblique axes, two of them sharing a tilted face,
+    a box nested in another, and a tilted plane through the lot."""
+    parts = []
+    for i, (axis, deg, centre, size) in enumerate([
+            ((1, 1, 0), 30, (0, 0, 0), (1, 1, 1)),
+            ((1, 2, 3), 47, (2, 0.3, 0.2), (1.5, 0.5, 0.8)),
+            ((0, 1, 1), 61, (-1.8, 0.5, -0.2), (0.6, 1.4, 0.6)),
+            ((1, 1, 0), 30, (0, 0, 0), (0.5, 0.5, 0.5)),          # nested in the first
+    ]):
+        v, f = _box((0, 0, 0), size, n=1 + i % 2)
+        parts.append((v @ _rotation(axis, deg).T + np.asarray(centre, float), f))
+    # A second box glued to the first one's +x face (the two faces coincide).
+    r = _rotation((1, 1, 0), 30)
+    v, f = _box((1.0, 0, 0), (1, 1, 1), n=2)
+    parts.append((v @ r.T, f))
+    # A tilted plane cutting through the boxes.
+    pv, pf = _grid((-3, -3, 0), (6, 0, 0), (0, 6, 0), 6, 6)
+    parts.append((pv @ _rotation((1, -1, 0.5), 20).T, pf))
+    return _merge(parts)
+
+
+_BUILDERS: dict[str, Callable[[], Mesh]] = {"room": _room, "spheres": _spheres, "fan": _fan_scene,
+                                            "cube": _cube, "grids": _grids, "tilted": _tilted}
+# Small scenes made to break trees (faces in the scene box's planes, coplanar
+# stacks, tilted and shared faces): traced by the ray-family agreement tests.
+PROBE_NAMES = ("cube", "grids", "tilted")
 
 
 # -- public API ------------------------------------------------------------------
@@ -233,7 +289,7 @@ _BUILDERS: dict[str, Callable[[], Mesh]] = {"room": _room, "spheres": _spheres, 
 def generate_mesh(name: str) -> tuple[np.ndarray, np.ndarray]:
     """`(vertices float32 (V,3), faces int32 (F,3))` of a generated scene."""
     if name not in _BUILDERS:
-        raise ValueError(f"unknown scene {name!r}; expected one of {NAMES}")
+        raise ValueError(f"unknown scene {name!r}; expected one of {NAMES + PROBE_NAMES}")
     vertices, faces = _BUILDERS[name]()
     return vertices.astype(np.float32), faces.astype(np.int32)
 
