@@ -130,6 +130,17 @@ def test_none_ray_range_means_the_default(tree):
         tree.intersect(o, d, tmax="far")
 
 
+def test_progress_reset_clears_a_cancel():
+    p = bsplab.Progress()
+    p.cancel()
+    with pytest.raises(bsplab.Cancelled):
+        bsplab.build(TRI, progress=p)
+    p.reset()
+    assert not p.cancelled and p.value == 0.0
+    bsplab.build(TRI, progress=p)  # usable again
+    assert p.value == pytest.approx(1.0)
+
+
 # -- cameras -----------------------------------------------------------------------
 
 
