@@ -51,15 +51,21 @@ def active_job():
 # Main thread: read the scene
 
 
-def read_camera_and_geometry(context):
+def read_camera_and_geometry(context, core):
     """The scene camera at the preview size and the visible triangles; raise
-    UserError when either is missing."""
+    UserError when either is missing or the camera is outside the core's
+    ranges (bsplab.camera.RANGES, wide enough for any usable Blender camera)."""
     depsgraph = context.evaluated_depsgraph_get()
     try:
         cam = camera.scene_camera(context.scene, depsgraph,
                                   context.scene.bsplab.preview_percentage)
     except camera.CameraError as ex:
         raise UserError(str(ex)) from ex
+    try:
+        make_camera(core, cam)
+    except (TypeError, ValueError) as ex:
+        raise UserError("The scene camera '{}' cannot be previewed: {}".format(
+            cam.name, ex)) from ex
     geometry = extract.scene_triangles(depsgraph)
     if geometry.triangle_count == 0:
         if geometry.instances == 0:
@@ -82,7 +88,7 @@ def read_scene(context, core):
     if "k" in params and min_k is not None and not min_k <= settings.k <= max_k:
         raise UserError("K must be in {}..{} for {}, not {}".format(
             min_k, max_k, info.get("label", method), settings.k))
-    cam, geometry = read_camera_and_geometry(context)
+    cam, geometry = read_camera_and_geometry(context, core)
     return JobInput(
         triangles=geometry.triangles,
         objects=geometry.objects,
@@ -107,7 +113,7 @@ def read_sweep(context, core):
         sweep.plan(methods, core.methods(), settings.sweep_k_min, settings.sweep_k_max)
     except sweep.SweepError as ex:
         raise UserError(str(ex)) from ex
-    cam, geometry = read_camera_and_geometry(context)
+    cam, geometry = read_camera_and_geometry(context, core)
     try:
         importlib.import_module(core.__name__ + ".checks").triangles(geometry.triangles)
     except (TypeError, ValueError) as ex:

@@ -97,7 +97,9 @@ class SweepJob(jobs.WorkerJob):
 
     def _on_progress(self, done, total, _label):
         self._done, self._total = done, total
-        self.progress.reset()
+        self.progress.reset()  # the next cell's fraction; reset() also clears a cancel...
+        if self.cancelled:     # ...so a cancel that came meanwhile is set again
+            self.progress.cancel()
 
     def _compute(self):
         import importlib

@@ -11,10 +11,38 @@ from pathlib import Path
 import numpy as np
 
 
+def output_file(path, flag: str, example: str) -> Path:
+    """`path` as a file the command will write: refused up front (before any
+    long work) when it is a directory or lies under a file."""
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{flag} {path} is a directory; give a file name such as "
+                         f"{p / example}")
+    _under_a_directory(p, flag)
+    return p
+
+
+def output_dir(path, flag: str) -> Path:
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise ValueError(f"{flag} {path} is a file; give a directory")
+    _under_a_directory(p, flag)
+    return p
+
+
+def _under_a_directory(p: Path, flag: str) -> None:
+    for parent in p.parents:  # the nearest one that exists must be a directory
+        if parent.exists():
+            if not parent.is_dir():
+                raise ValueError(f"{flag} {p}: {parent} is a file, not a directory")
+            return
+
+
 def cmd_demo(args) -> int:
     import bsplab
     from bsplab import bench, oracle, png, scenes, workloads
 
+    out = output_file(args.out, "--out", "demo.png")
     tris = bench.load(args.scene)
     camera = (scenes.default_camera(args.scene) if args.scene in scenes.NAMES
               else workloads.framing_camera(tris))
@@ -23,7 +51,6 @@ def cmd_demo(args) -> int:
     tree = bsplab.build(tris, method=args.method, progress=progress)
     image, rstats = bsplab.render(tree, camera, args.width, args.height, args.mode,
                                   threads=args.threads)
-    out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     png.write_png(out, image)
     s = tree.stats
@@ -69,6 +96,8 @@ def cmd_demo(args) -> int:
 
 def cmd_bench(args) -> int:
     from bsplab import bench
+    if args.out:
+        output_file(args.out, "--out", "benchmark.md")
     scenes_ = args.scenes or bench.default_scenes()
     methods = args.methods or bench.default_methods()
     rows = bench.run(scenes_, methods, primary_side=args.side, random_count=args.rays,
@@ -85,6 +114,11 @@ def cmd_bench(args) -> int:
 def cmd_family(args) -> int:
     from bsplab import bench_family
     from bsplab.method_table import METHODS
+    if args.out:
+        output_file(args.out, "--out", "bsp_benchmark.md")
+        output_file(Path(args.out).with_suffix(".csv"), "--out's .csv", "bsp_benchmark.csv")
+    if not args.ks and args.kmin > args.kmax:
+        raise ValueError(f"--kmin {args.kmin} is more than --kmax {args.kmax}: no K to run")
     ks = args.ks or list(range(args.kmin, args.kmax + 1))
     methods = args.methods or [m for m in METHODS if m != "kd"]
     rows = bench_family.run(args.scenes, methods, ks, repeats=args.repeats, side=args.side)
@@ -101,6 +135,8 @@ def cmd_family(args) -> int:
 
 def cmd_cull(args) -> int:
     from bsplab import bench_cull
+    if args.out:
+        output_file(args.out, "--out", "cull_benchmark.md")
     rows = bench_cull.run(args.scenes, repeats=args.repeats, side=args.side)
     if args.out:
         out = Path(args.out)
@@ -116,6 +152,13 @@ def cmd_experiment(args) -> int:
                  "scheduler": args.scheduler, "repetitions": args.repetitions}
     spec = experiment.load_spec(args.spec, **overrides)
     out = Path(args.out or Path("out") / "experiments" / spec.name)
+    if out.is_dir():
+        raise ValueError(f"--out {out} is a directory; give a results path such as "
+                         f"{out / spec.name} ({spec.name}.csv and .json are written there)")
+    for suffix in (".csv", ".json"):
+        output_file(out.with_suffix(suffix), "--out", spec.name + suffix)
+    if args.report:
+        output_file(args.report, "--report", "report.md")
     rows = experiment.run(spec, out, fresh=args.fresh)
     print(f"{len(rows)} rows in {out.with_suffix('.csv')} (run record: {out.with_suffix('.json')})")
     if args.report:
@@ -140,6 +183,7 @@ def write_report(rows, results_path: Path, md: Path, title: str) -> None:
 
 def cmd_report(args) -> int:
     from bsplab import experiment
+    output_file(args.out, "--out", "report.md")
     rows = experiment.read_rows(args.results)
     write_report(rows, Path(args.results), Path(args.out), args.title)
     return 0
@@ -147,6 +191,7 @@ def cmd_report(args) -> int:
 
 def cmd_results(args) -> int:
     from bsplab import results
+    output_file(args.out, "--out", "results.md")
     return results.main(quick=args.quick, out=Path(args.out), fresh=not args.resume)
 
 
@@ -170,7 +215,7 @@ def cmd_calibrate(args) -> int:
 
 def cmd_scenes(args) -> int:
     from bsplab import scenes
-    scenes.main_write(args.out)
+    scenes.main_write(output_dir(args.out, "--out"))
     return 0
 
 
@@ -181,9 +226,29 @@ def cmd_methods(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors on one line, like the commands' own."""
+
+    def error(self, message):
+        self.exit(2, f"error: {message} (see {self.prog} --help)\n")
+
+
+def whole(low: int):
+    """An argparse type: a whole number >= low."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+        return value
+    return parse
+
+
 def main(argv=None) -> int:
     from bsplab.render import RENDER_MODES
-    p = argparse.ArgumentParser(prog="python -m bsplab", description=__doc__)
+    p = _Parser(prog="python -m bsplab", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
 
     d = sub.add_parser("demo", help="build a tree, render a preview PNG, print statistics")
@@ -191,18 +256,18 @@ def main(argv=None) -> int:
                    help="generated scene name, shared mesh name, or a .ply/.obj path")
     d.add_argument("--method", default="kd")
     d.add_argument("--mode", default="shaded", choices=RENDER_MODES)
-    d.add_argument("--width", type=int, default=640)
-    d.add_argument("--height", type=int, default=480)
-    d.add_argument("--threads", type=int, default=0)
+    d.add_argument("--width", type=whole(1), default=640)
+    d.add_argument("--height", type=whole(1), default=480)
+    d.add_argument("--threads", type=whole(0), default=0, help="0: all cores")
     d.add_argument("--out", default="out/demo.png")
     d.set_defaults(func=cmd_demo)
 
     b = sub.add_parser("bench", help="build and trace time against Embree")
     b.add_argument("--scenes", nargs="*", help="default: generated + all shared meshes")
     b.add_argument("--methods", nargs="*", help="default: kd")
-    b.add_argument("--side", type=int, default=512, help="primary rays: side x side")
-    b.add_argument("--rays", type=int, default=250_000, help="random rays")
-    b.add_argument("--repeats", type=int, default=3)
+    b.add_argument("--side", type=whole(1), default=512, help="primary rays: side x side")
+    b.add_argument("--rays", type=whole(1), default=250_000, help="random rays")
+    b.add_argument("--repeats", type=whole(1), default=3)
     b.add_argument("--out", help="write a Markdown report here")
     b.set_defaults(func=cmd_bench)
 
@@ -211,19 +276,20 @@ def main(argv=None) -> int:
     f.add_argument("--scenes", nargs="+",
                    default=["sponza_dabrovic", "conference", "sibenik", "bunny"])
     f.add_argument("--methods", nargs="*", help="default: every method but kd")
-    f.add_argument("--kmin", type=int, default=3)
-    f.add_argument("--kmax", type=int, default=10)
-    f.add_argument("--ks", type=int, nargs="*", help="explicit K values (instead of kmin..kmax)")
-    f.add_argument("--side", type=int, default=384, help="primary rays: side x side")
-    f.add_argument("--repeats", type=int, default=2)
+    f.add_argument("--kmin", type=whole(1), default=3)
+    f.add_argument("--kmax", type=whole(1), default=10)
+    f.add_argument("--ks", type=whole(1), nargs="*",
+                   help="explicit K values (instead of kmin..kmax)")
+    f.add_argument("--side", type=whole(1), default=384, help="primary rays: side x side")
+    f.add_argument("--repeats", type=whole(1), default=2)
     f.add_argument("--out", help="write Markdown here (and the rows as .csv beside it)")
     f.set_defaults(func=cmd_family)
 
     u = sub.add_parser("bench-cull", help="leaf culling on vs off, per scene and method")
     u.add_argument("--scenes", nargs="+",
                    default=["sponza_dabrovic", "conference", "sibenik", "bunny"])
-    u.add_argument("--side", type=int, default=384)
-    u.add_argument("--repeats", type=int, default=3)
+    u.add_argument("--side", type=whole(1), default=384)
+    u.add_argument("--repeats", type=whole(1), default=3)
     u.add_argument("--out", help="write Markdown here")
     u.set_defaults(func=cmd_cull)
 
@@ -233,9 +299,9 @@ def main(argv=None) -> int:
                                  "out/experiments/<name>")
     x.add_argument("--fresh", action="store_true", help="discard earlier results at --out")
     x.add_argument("--executor", choices=["process", "dask", "inline"])
-    x.add_argument("--workers", type=int, help="parallel cells")
+    x.add_argument("--workers", type=whole(1), help="parallel cells")
     x.add_argument("--scheduler", help="dask scheduler address (default: a local cluster)")
-    x.add_argument("--repetitions", type=int)
+    x.add_argument("--repetitions", type=whole(1))
     x.add_argument("--report", help="also write a Markdown report (and plots) here")
     x.set_defaults(func=cmd_experiment)
 
@@ -264,7 +330,7 @@ def main(argv=None) -> int:
 
     c = sub.add_parser("calibrate", help="fit the SAH costs to this machine's trace times")
     c.add_argument("--scenes", nargs="+", default=["spheres", "room"])
-    c.add_argument("--repeats", type=int, default=3)
+    c.add_argument("--repeats", type=whole(1), default=3)
     c.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("scenes", help="(re)write the generated scenes as PLY files")
@@ -277,9 +343,17 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, TypeError, FileNotFoundError, RuntimeError) as e:
+    except (ValueError, TypeError, RuntimeError) as e:
         print(f"error: {e}", file=sys.stderr)
-        return 2
+    except MemoryError as e:
+        print(f"error: out of memory{f': {e}' if str(e) else ''}", file=sys.stderr)
+    except OSError as e:  # a file that cannot be read or written
+        where = f"{e.filename}: " if e.filename and e.strerror else ""
+        print(f"error: {where}{e.strerror or e}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+    return 2
 
 
 if __name__ == "__main__":

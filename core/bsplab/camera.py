@@ -27,6 +27,29 @@ import numpy as np
 
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 
+# Accepted ranges (low, high, unit). Blender's fields offer lens >= 1 mm (up to
+# 5000 on the slider), sensors >= 1 mm (up to 100), shifts of -2..2 on the
+# slider (-10..10 in older versions) and pixel aspects 1..200 each (so a
+# ratio in 0.005..200): every real Blender camera fits with a wide margin,
+# and the extremes keep every ray direction finite and non-zero.
+RANGES = {
+    "lens": (1e-3, 1e6, " mm"),
+    "sensor_width": (1e-3, 1e6, " mm"),
+    "sensor_height": (1e-3, 1e6, " mm"),
+    "shift_x": (-100.0, 100.0, ""),
+    "shift_y": (-100.0, 100.0, ""),
+    "clip_start": (1e-9, 1e30, ""),
+    "pixel_aspect": (1e-3, 1e3, ""),
+}
+FOV_RANGE = (0.01, 179.9)  # look_at's fov_deg, degrees
+MAX_COORDINATE = 1e30       # camera position, so that float32 origins stay finite
+
+
+def _is_number(value: Any) -> bool:
+    """True for Python/numpy reals, but not for bools."""
+    return (isinstance(value, (int, float, np.integer, np.floating))
+            and not isinstance(value, (bool, np.bool_)))
+
 
 def _is_int(value: Any) -> bool:
     """True for Python/numpy integers, but not for bools or integral floats."""
@@ -49,30 +72,29 @@ class Camera:
     pixel_aspect: float = 1.0  # pixel_aspect_x / pixel_aspect_y
 
     def __post_init__(self) -> None:
-        self.matrix_world = np.array(self.matrix_world, dtype=np.float64)
+        self.matrix_world = _matrix(self.matrix_world, copy=True)  # not the caller's array
         self.validate()
 
     # -- validation -----------------------------------------------------------
 
     def validate(self) -> None:
-        """Raise ValueError for any parameter Blender would not accept."""
-        m = self.matrix_world = np.asarray(self.matrix_world, dtype=np.float64)
-        if m.shape != (4, 4):
-            raise ValueError(f"Camera: matrix_world must be 4x4, got shape {m.shape}")
-        if not np.all(np.isfinite(m)):
-            raise ValueError("Camera: matrix_world contains NaN or inf")
-        if np.any(np.linalg.norm(m[:3, :3], axis=0) == 0.0):
-            raise ValueError("Camera: matrix_world has a zero-length axis")
-        for name in ("lens", "sensor_width", "sensor_height", "clip_start", "pixel_aspect"):
+        """TypeError for a value that is not a number, ValueError for one
+        outside the ranges in RANGES (which hold every camera Blender's own
+        fields offer, with a wide margin)."""
+        self.matrix_world = _matrix(self.matrix_world, copy=False)
+        for name, (low, high, unit) in RANGES.items():
             value = getattr(self, name)
-            if not (isinstance(value, (int, float, np.number)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"Camera: {name} must be a finite number > 0, got {value!r}")
-        for name in ("shift_x", "shift_y", "clip_end"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float, np.number)) and math.isfinite(value)):
-                raise ValueError(f"Camera: {name} must be a finite number, got {value!r}")
-        if self.clip_end <= self.clip_start:
-            raise ValueError(f"Camera: clip_end ({self.clip_end}) must exceed "
+            if not _is_number(value):
+                raise TypeError(f"Camera: {name} must be a number, got {type(value).__name__} "
+                                f"{value!r}")
+            if not (math.isfinite(value) and low <= value <= high):
+                raise ValueError(f"Camera: {name} must be in {_g(low)}..{_g(high)}{unit}, "
+                                 f"got {value!r}")
+        if not _is_number(self.clip_end):
+            raise TypeError(f"Camera: clip_end must be a number, got "
+                            f"{type(self.clip_end).__name__} {self.clip_end!r}")
+        if not math.isfinite(self.clip_end) or self.clip_end <= self.clip_start:
+            raise ValueError(f"Camera: clip_end ({self.clip_end}) must be finite and exceed "
                              f"clip_start ({self.clip_start})")
         if self.sensor_fit not in SENSOR_FITS:
             raise ValueError(f"Camera: sensor_fit must be one of {SENSOR_FITS}, "
@@ -90,13 +112,22 @@ class Camera:
         the horizontal field of view for landscape images under AUTO fit.
         Extra keyword arguments are passed on to the constructor.
         """
-        eye_v, target_v, up_v = (np.asarray(v, dtype=np.float64).reshape(3)
-                                 for v in (eye, target, up))
-        if not (0.0 < fov_deg < 180.0):
-            raise ValueError(f"Camera.look_at: fov_deg must be in (0, 180), got {fov_deg}")
+        eye_v, target_v, up_v = (_point(v, n) for v, n in ((eye, "eye"), (target, "target"),
+                                                           (up, "up")))
+        if not _is_number(fov_deg):
+            raise TypeError(f"Camera.look_at: fov_deg must be a number, got "
+                            f"{type(fov_deg).__name__} {fov_deg!r}")
+        if not FOV_RANGE[0] <= fov_deg <= FOV_RANGE[1]:  # also refuses NaN
+            raise ValueError(f"Camera.look_at: fov_deg must be in {FOV_RANGE[0]:g}.."
+                             f"{FOV_RANGE[1]:g} degrees, got {fov_deg!r}")
+        if not _is_number(sensor_width):
+            raise TypeError(f"Camera.look_at: sensor_width must be a number, got "
+                            f"{type(sensor_width).__name__} {sensor_width!r}")
         forward = target_v - eye_v
         if not np.all(np.isfinite(forward)) or np.linalg.norm(forward) == 0.0:
             raise ValueError("Camera.look_at: eye and target must be distinct finite points")
+        if not np.any(up_v):
+            raise ValueError("Camera.look_at: up must not be the zero vector")
         forward /= np.linalg.norm(forward)
         right = np.cross(forward, up_v)
         if np.linalg.norm(right) < 1e-9 * max(np.linalg.norm(up_v), 1e-300):
@@ -171,6 +202,45 @@ class Camera:
         if unknown:
             raise ValueError(f"Camera.from_dict: unknown keys {sorted(unknown)}")
         return cls(**data)
+
+
+def _g(x: float) -> str:
+    """1e6 and 1e-9 rather than 1e+06 and 1e-09 in messages."""
+    return f"{x:g}".replace("e+0", "e").replace("e+", "e").replace("e-0", "e-")
+
+
+def _matrix(value: Any, copy: bool) -> np.ndarray:
+    """A float64 4x4 camera-to-world matrix with finite, non-zero axes."""
+    try:
+        m = (np.array if copy else np.asarray)(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"Camera: matrix_world must be a 4x4 array of numbers, got "
+                        f"{type(value).__name__}") from None
+    if m.shape != (4, 4):
+        raise ValueError(f"Camera: matrix_world must be 4x4, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ValueError("Camera: matrix_world contains NaN or inf")
+    with np.errstate(over="ignore", under="ignore"):
+        norms = np.linalg.norm(m[:3, :3], axis=0)
+    if np.any(norms == 0.0) or not np.all(np.isfinite(norms)):
+        raise ValueError("Camera: matrix_world has a zero-length (or overflowing) axis")
+    if np.abs(m[:3, 3]).max() > MAX_COORDINATE:
+        raise ValueError(f"Camera: the position {tuple(m[:3, 3])} is beyond "
+                         f"+-{_g(MAX_COORDINATE)}")
+    return m
+
+
+def _point(value: Any, name: str) -> np.ndarray:
+    """Three finite numbers as a float64 vector (look_at's eye, target, up)."""
+    try:
+        v = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"Camera.look_at: {name} must be 3 numbers, got {value!r}") from None
+    if v.shape != (3,):
+        raise ValueError(f"Camera.look_at: {name} must be 3 numbers, got shape {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"Camera.look_at: {name} must be finite, got {tuple(v)}")
+    return v
 
 
 def _check_size(width: Any, height: Any) -> None:

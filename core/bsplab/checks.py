@@ -144,9 +144,16 @@ def rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
     return o, d
 
 
-def ray_range(value, name: str, n: int) -> np.ndarray:
-    """tmin/tmax as a length-1 (broadcast) or length-n float32 array."""
-    arr = np.asarray(value, dtype=np.float64)
+def ray_range(value, name: str, n: int, default: float = 0.0) -> np.ndarray:
+    """tmin/tmax as a length-1 (broadcast) or length-n float32 array; None
+    means `default` (0 for tmin, inf, no limit, for tmax)."""
+    if value is None:
+        value = default
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number, an array of numbers or None, "
+                        f"got {type(value).__name__}") from None
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim != 1 or len(arr) not in (1, n):
@@ -156,3 +163,13 @@ def ray_range(value, name: str, n: int) -> np.ndarray:
     if (arr < 0).any():
         raise ValueError(f"{name} must be >= 0")
     return np.ascontiguousarray(arr, dtype=np.float32)
+
+
+def progress(value):
+    """None or a bsplab.Progress (the core's own type; anything else would
+    meet nanobind's raw signature dump)."""
+    from . import _core
+    if value is not None and not isinstance(value, _core.Progress):
+        raise TypeError(f"progress must be a bsplab.Progress or None, got "
+                        f"{type(value).__name__}")
+    return value

@@ -89,18 +89,45 @@ SPEC_DEFAULTS = {f.name: f.default if f.default_factory is MISSING else f.defaul
                  for f in fields(Spec)}
 
 
+MAX_RANGE = 10_000  # values an 'a..b' range may expand to
+
+
 def _int_list(value, key: str) -> list[int]:
     if isinstance(value, str):  # "3..10"
         lo, sep, hi = value.partition("..")
         if sep and lo.strip().isdigit() and hi.strip().isdigit():
-            return list(range(int(lo), int(hi) + 1))
+            lo, hi = int(lo), int(hi)
+            if lo > hi:
+                raise SpecError(f"{key}: empty range {value!r} (the first number must not "
+                                "exceed the last)")
+            if hi - lo + 1 > MAX_RANGE:
+                raise SpecError(f"{key}: range {value!r} has {hi - lo + 1} values, more than "
+                                f"the {MAX_RANGE} allowed")
+            return list(range(lo, hi + 1))
         raise SpecError(f"{key}: expected a list of integers or 'a..b', got {value!r}")
     if isinstance(value, int) and not isinstance(value, bool):
         return [value]
     if not isinstance(value, (list, tuple)) or not value or not all(
             isinstance(v, int) and not isinstance(v, bool) for v in value):
         raise SpecError(f"{key}: expected a non-empty list of integers, got {value!r}")
+    _no_repeats(value, key)
     return list(value)
+
+
+def _no_repeats(values, key: str) -> None:
+    """A value listed twice would make the same cell twice."""
+    seen = set()
+    for v in values:
+        if v in seen:
+            raise SpecError(f"{key}: {v!r} is listed twice")
+        seen.add(v)
+
+
+def _kind(value) -> str:
+    """How a spec file's reader would name the type of `value`."""
+    names = {list: "a list", tuple: "a list", str: "a string", int: "a number",
+             float: "a number", bool: "a boolean", type(None): "null"}
+    return names.get(type(value), type(value).__name__)
 
 
 def _check_k(method: str, k: int) -> None:
@@ -112,7 +139,8 @@ def _check_k(method: str, k: int) -> None:
 def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True) -> Spec:
     """A validated Spec from a dict (as read from TOML or JSON)."""
     if not isinstance(data, dict):
-        raise SpecError("a spec is a table of settings")
+        raise SpecError(f"a spec must be a table (TOML) or an object (JSON) of settings, "
+                        f"got {_kind(data)}")
     unknown = sorted(set(data) - set(SPEC_DEFAULTS))
     if unknown:
         raise SpecError(f"unknown spec key(s) {', '.join(unknown)}; known keys: "
@@ -121,9 +149,11 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     scenes = d["scenes"]
     if isinstance(scenes, str):
         scenes = [scenes]
-    if not scenes or not all(isinstance(s, str) and s for s in scenes):
+    if not isinstance(scenes, list) or not scenes or not all(isinstance(s, str) and s
+                                                             for s in scenes):
         raise SpecError("scenes: give at least one scene (a generated scene name, a shared "
                         "mesh name, or a .ply/.obj/.blend file)")
+    _no_repeats(scenes, "scenes")
     if base_dir is not None:  # relative files are relative to the spec file
         scenes = [str(base_dir / s) if _looks_like_file(s) and not Path(s).is_absolute()
                   else s for s in scenes]
@@ -133,8 +163,10 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     methods = d["methods"]
     if isinstance(methods, str):
         methods = [methods]
-    if not methods or not all(isinstance(m, str) for m in methods):
+    if not isinstance(methods, list) or not methods or not all(isinstance(m, str)
+                                                               for m in methods):
         raise SpecError("methods: give a list of method names")
+    _no_repeats(methods, "methods")
     for m in methods:
         if m not in METHODS:
             raise SpecError(f"unknown method {m!r}; known methods: {', '.join(METHODS)}")
@@ -151,13 +183,21 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
             for k in method_ks.get(m, ks):
                 _check_k(m, k)
     seeds = _int_list(d["seeds"], "seeds")
-    if any(s < 0 for s in seeds):
-        raise SpecError("seeds must be >= 0")
+    if any(not 0 <= s <= 2**63 - 1 for s in seeds):
+        raise SpecError(f"seeds must be in 0..{2**63 - 1}, got {seeds!r}")
     workloads = d["workloads"]
     if isinstance(workloads, str):
         workloads = [workloads]
-    if not workloads or any(w not in WORKLOADS for w in workloads):
+    if (not isinstance(workloads, list) or not workloads
+            or any(not isinstance(w, str) or w not in WORKLOADS for w in workloads)):
         raise SpecError(f"workloads: expected some of {', '.join(WORKLOADS)}, got {workloads!r}")
+    _no_repeats(workloads, "workloads")
+    for key in ("name", "scheduler"):
+        if not isinstance(d[key], str):
+            raise SpecError(f"{key} must be a string, got {_kind(d[key])} {d[key]!r}")
+    if not d["name"] or any(c in d["name"] for c in "/\\") or d["name"].startswith("."):
+        raise SpecError(f"name must be a plain file name (not empty, no '/' or '\\', not "
+                        f"starting with '.'), got {d['name']!r}")
 
     def integer(key, lo, hi):
         v = d[key]
@@ -169,7 +209,7 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     if (isinstance(ao_distance, bool) or not isinstance(ao_distance, (int, float))
             or not 0 < ao_distance <= 10):
         raise SpecError(f"ao_distance must be a number in (0, 10], got {ao_distance!r}")
-    if d["executor"] not in EXECUTORS:
+    if not isinstance(d["executor"], str) or d["executor"] not in EXECUTORS:
         raise SpecError(f"executor must be one of {', '.join(EXECUTORS)}, got {d['executor']!r}")
     if not isinstance(d["options"], dict):
         raise SpecError("options: expected a table of build options")
@@ -203,9 +243,15 @@ def _check_options(spec: Spec) -> None:
 def load_spec(path, **overrides) -> Spec:
     """Reads a TOML (.toml) or JSON (.json) spec file; `overrides` replace keys."""
     path = Path(path)
+    if path.is_dir():
+        raise SpecError(f"spec file {path} is a directory")
     if not path.is_file():
         raise SpecError(f"spec file {path} does not exist")
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise SpecError(f"{path}: not a text (UTF-8) file: byte {e.start} is "
+                        f"{e.object[e.start:e.start + 1]!r}") from None
     if path.suffix == ".json":
         try:
             data = json.loads(text)
@@ -220,8 +266,16 @@ def load_spec(path, **overrides) -> Spec:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise SpecError(f"{path}: not valid TOML: {e}") from None
-    data.update({k: v for k, v in overrides.items() if v is not None})
-    return make_spec(data, base_dir=path.parent)
+    if not isinstance(data, dict):
+        raise SpecError(f"{path}: a spec must be a JSON object of settings ({{\"scenes\": "
+                        f"[...], ...}}), got {_kind(data)}")
+    given = {k: v for k, v in overrides.items() if v is not None}
+    data.update(given)
+    try:
+        return make_spec(data, base_dir=path.parent)
+    except SpecError as e:
+        where = f"{path} with --{', --'.join(given)}" if given else str(path)
+        raise SpecError(f"{where}: {e}") from None
 
 
 def _looks_like_file(scene: str) -> bool:
@@ -234,6 +288,8 @@ def check_scene(scene: str) -> None:
         return
     if _looks_like_file(scene):
         p = Path(scene)
+        if p.is_dir():
+            raise SpecError(f"scene file {scene} is a directory, not a mesh file")
         if not p.is_file():
             raise SpecError(f"scene file {scene} does not exist")
         if p.suffix.lower() not in (".ply", ".obj", ".blend"):
@@ -581,9 +637,70 @@ def run(spec: Spec, out, *, fresh: bool = False, executor=None,
     return results.rows
 
 
+# The columns `report` reads, and how each must parse. Others (and the
+# kd_s column that older runs lack) are optional.
+REPORT_COLUMNS = {
+    "scene": "text", "workload": "text", "method": "text", "k": "int?", "triangles": "int",
+    "rays": "int", "build_s": "number", "kd_nodes": "number", "general_nodes": "number",
+    "bytes": "number", "steps": "number", "tests": "number", "unexplained": "int?",
+    "level_planes": "ints", "level_directions": "ints", "trace_s": "numbers",
+    "embree_s": "numbers?",
+}
+
+
+def _parses(value: str, kind: str) -> bool:
+    if kind == "text":
+        return True
+    if value.strip() == "":  # '?' kinds may be empty, and so may a tree's level lists
+        return kind.endswith("?") or kind == "ints"
+    convert = int if kind.startswith("int") else float
+    try:
+        for x in value.split():
+            convert(x)
+    except ValueError:
+        return False
+    return kind.rstrip("?") in ("ints", "numbers") or len(value.split()) == 1
+
+
 def read_rows(path) -> list[dict]:
-    with open(Path(path).with_suffix(".csv"), newline="") as f:
-        return list(csv.DictReader(f))
+    """The rows of an `experiment` results file (`path`, or `path` with a
+    .csv suffix); ValueError naming the file when it is not one."""
+    if Path(path).is_dir():
+        raise ValueError(f"{path} is a directory, not a results file (give the .csv "
+                         "`experiment` wrote)")
+    csv_path = Path(path).with_suffix(".csv")
+    if csv_path.is_dir():
+        raise ValueError(f"{csv_path} is a directory, not a results file")
+    if not csv_path.is_file():
+        raise FileNotFoundError(f"no results file {csv_path}")
+    try:
+        with open(csv_path, newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            rows = list(reader)
+            columns = reader.fieldnames or []
+    except (UnicodeDecodeError, csv.Error) as e:
+        raise ValueError(f"{csv_path}: not a CSV results file ({e})") from None
+    missing = [c for c in REPORT_COLUMNS if c not in columns]
+    if missing:
+        raise ValueError(f"{csv_path}: not the results of `python -m bsplab experiment`: "
+                         f"missing column(s) {', '.join(missing)}")
+    for i, r in enumerate(rows, start=2):
+        if None in r.values():
+            raise ValueError(f"{csv_path}: line {i} has too few columns (a run cut short? "
+                             "rerun the experiment with the same spec to complete it)")
+        for c, kind in REPORT_COLUMNS.items():
+            if not _parses(r[c], kind):
+                raise ValueError(f"{csv_path}: line {i}: column {c} has {r[c]!r}, expected "
+                                 f"{_EXPECTED[kind]}")
+    if not rows:
+        raise ValueError(f"{csv_path}: no result rows (only the header)")
+    return rows
+
+
+_EXPECTED = {"text": "text", "int": "a whole number", "int?": "a whole number or nothing",
+             "number": "a number", "ints": "whole numbers separated by spaces",
+             "numbers": "numbers separated by spaces",
+             "numbers?": "numbers separated by spaces, or nothing"}
 
 
 def iter_times(value: str) -> Iterable[float]:

@@ -65,14 +65,15 @@ def _parse_header(data: bytes, name: str) -> tuple[str | None, list[_Element], i
                     raise ValueError(f"unsupported format {words[1]!r}")
                 order = _PLY_FORMATS[words[1]]
             elif words[0] == "element":
-                elements.append(_Element(words[1], int(words[2]), []))
-                if elements[-1].count < 0:
-                    raise ValueError("negative element count")
+                elements.append(_Element(words[1], _element_count(words[2]), []))
             elif words[0] == "property":
                 if not elements:
                     raise ValueError("property before any element")
                 if words[1] == "list":
                     prop = _Property(words[4], _PLY_TYPES[words[3]], _PLY_TYPES[words[2]])
+                    if prop.count_dtype[0] == "f":
+                        raise ValueError(f"a list count must have an integer type, "
+                                         f"not {words[2]!r}")
                 else:
                     prop = _Property(words[2], _PLY_TYPES[words[1]])
                 elements[-1].props.append(prop)
@@ -84,6 +85,31 @@ def _parse_header(data: bytes, name: str) -> tuple[str | None, list[_Element], i
     if order == "missing":
         raise ValueError(f"{name}: bad PLY header (no 'format' line)")
     return order, elements, body
+
+
+def _element_count(word: str) -> int:
+    if not word.isdigit():  # also refuses '3.7', '-1', 'nan', 'inf'
+        raise ValueError(f"element count must be a whole number >= 0, got {word!r}")
+    return int(word)
+
+
+def _check_list_count(n, available: int, item_size: int, total: int, elem: _Element,
+                      record: int, prop: _Property, name: str) -> int:
+    """A list's item count as an int, or a ValueError naming the element, the
+    record and the count. `available` is how many bytes (binary) or tokens
+    (ASCII, item_size 1) are left after the count; `total` is the whole body's."""
+    where = f"{elem.name} {record}, list {prop.name!r}"
+    if not (np.isfinite(n) and float(n).is_integer() and n >= 0):
+        shown = f"{n:g}" if isinstance(n, (float, np.floating)) else str(n)
+        raise ValueError(f"{name}: {where}: bad list count {shown} (must be a whole number "
+                         ">= 0)")
+    n = int(n)
+    if n * item_size > total:
+        raise ValueError(f"{name}: {where}: list count {n} is larger than the whole file")
+    if n * item_size > available:
+        raise ValueError(f"{name}: truncated data in element {elem.name!r} "
+                         f"({elem.name} {record} of {elem.count} is cut off)")
+    return n
 
 
 # -- PLY body: binary ------------------------------------------------------------
@@ -115,9 +141,12 @@ def _first_list_sizes(buf: bytes, pos: int, elem: _Element, order: str, name: st
         count_t = np.dtype(order + p.count_dtype)
         if pos + count_t.itemsize > len(buf):
             raise ValueError(f"{name}: truncated data in element {elem.name!r}")
-        n = int(np.frombuffer(buf, count_t, 1, pos)[0])
+        item = np.dtype(p.dtype).itemsize
+        pos += count_t.itemsize
+        n = _check_list_count(np.frombuffer(buf, count_t, 1, pos - count_t.itemsize)[0],
+                              len(buf) - pos, item, len(buf), elem, 0, p, name)
         sizes.append(n)
-        pos += count_t.itemsize + n * np.dtype(p.dtype).itemsize
+        pos += n * item
     return sizes
 
 
@@ -149,21 +178,28 @@ def _read_binary_variable(buf: bytes, pos: int, elem: _Element, order: str,
     counts: list[list[int]] = [[] for _ in elem.props]
     types = [(np.dtype(order + p.dtype), np.dtype(order + (p.count_dtype or p.dtype)))
              for p in elem.props]
-    try:
-        for _ in range(elem.count):
-            for i, p in enumerate(elem.props):
-                item_t, count_t = types[i]
-                if p.count_dtype is None:
-                    values[i].append(np.frombuffer(buf, item_t, 1, pos)[0])
-                    pos += item_t.itemsize
-                    continue
-                n = int(np.frombuffer(buf, count_t, 1, pos)[0])
-                pos += count_t.itemsize
-                values[i].append(np.frombuffer(buf, item_t, n, pos))
-                counts[i].append(n)
-                pos += n * item_t.itemsize
-    except ValueError:  # np.frombuffer past the end of the buffer
-        raise ValueError(f"{name}: truncated data in element {elem.name!r}") from None
+
+    def scalar(dtype: np.dtype, at: int):
+        if at + dtype.itemsize > len(buf):
+            raise ValueError(f"{name}: truncated data in element {elem.name!r} "
+                             f"({elem.name} {record} of {elem.count} is cut off)")
+        return np.frombuffer(buf, dtype, 1, at)[0]
+
+    for record in range(elem.count):
+        for i, p in enumerate(elem.props):
+            item_t, count_t = types[i]
+            if p.count_dtype is None:
+                values[i].append(scalar(item_t, pos))
+                pos += item_t.itemsize
+                continue
+            count = scalar(count_t, pos)
+            pos += count_t.itemsize
+            n = _check_list_count(count, len(buf) - pos, item_t.itemsize, len(buf), elem,
+                                  record, p, name)
+            values[i].append(np.frombuffer(buf, item_t, n, pos) if n else
+                             np.zeros(0, item_t))
+            counts[i].append(n)
+            pos += n * item_t.itemsize
     cols: _Columns = {}
     for i, p in enumerate(elem.props):
         if p.count_dtype is None:
@@ -191,15 +227,14 @@ def _read_ascii_element(tokens: np.ndarray, pos: int, elem: _Element,
     values: list[list] = [[] for _ in elem.props]
     counts: list[list[int]] = [[] for _ in elem.props]
     try:
-        for _ in range(elem.count):
+        for record in range(elem.count):
             for i, p in enumerate(elem.props):
                 if p.count_dtype is None:
                     values[i].append(tokens[pos])
                     pos += 1
                     continue
-                n = int(tokens[pos])
-                if n < 0 or pos + 1 + n > tokens.size:
-                    raise IndexError
+                n = _check_list_count(tokens[pos], tokens.size - pos - 1, 1, tokens.size, elem,
+                                      record, p, name)
                 values[i].append(tokens[pos + 1:pos + 1 + n])
                 counts[i].append(n)
                 pos += 1 + n
@@ -255,13 +290,66 @@ def _check_indices(faces: np.ndarray, n_vertices: int, name: str) -> np.ndarray:
     return faces.astype(np.int32).reshape(-1, 3)
 
 
+def _face_of(counts: np.ndarray, corner: int) -> int:
+    """The face holding the corner-th entry of the concatenated face lists."""
+    return int(np.searchsorted(np.cumsum(counts), corner, side="right"))
+
+
+def _check_face_indices(counts: np.ndarray, flat: np.ndarray, n_vertices: int,
+                        name: str) -> np.ndarray:
+    """PLY face lists as int64 after checking every index is a whole number
+    naming a vertex; a message names the face (numbered from 0, like the
+    file's own indices) and the index as written."""
+    flat = np.asarray(flat)
+    if np.issubdtype(flat.dtype, np.floating):
+        bad = ~np.isfinite(flat) | (flat != np.floor(flat))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"{name}: face {_face_of(counts, i)} has a non-integer vertex "
+                             f"index {flat[i]:g}")
+    bad = (flat < 0) | (flat >= n_vertices)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{name}: face {_face_of(counts, i)}: vertex index {int(flat[i])} "
+                         f"out of range (file has {n_vertices} vertices)")
+    return flat.astype(np.int64)
+
+
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _checked_vertices(v: np.ndarray, name: str, where) -> np.ndarray:
+    """float32 vertices after refusing NaN, infinite and beyond-float32
+    coordinates; `where(i)` names vertex i (0-based) in the message."""
+    v = np.asarray(v, dtype=np.float64)
+    bad = ~np.isfinite(v).all(axis=1)
+    why = "a NaN or infinite coordinate"
+    if not bad.any():
+        bad = (np.abs(v) > _FLOAT32_MAX).any(axis=1)
+        why = "a coordinate beyond the float32 range of +-3.4e38"
+    if bad.any():
+        i = int(np.argmax(bad))
+        xyz = ", ".join(f"{x:g}" for x in v[i])
+        raise ValueError(f"{name}: {where(i)} has {why} ({xyz})")
+    return v.astype(np.float32)
+
+
+def _read_bytes(path: PathLike) -> bytes:
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{path}: is a directory, not a mesh file (.ply or .obj)")
+    if not p.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    return p.read_bytes()
+
+
 # -- public API ------------------------------------------------------------------
 
 
 def read_ply(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     """Read a PLY mesh: `(vertices float32 (V,3), faces int32 (F,3))`."""
     name = str(path)
-    data = Path(path).read_bytes()
+    data = _read_bytes(path)
     order, elements, pos = _parse_header(data, name)
     tokens = _ascii_tokens(data[pos:], name) if order is None else None
     if order is None:
@@ -282,7 +370,8 @@ def _vertices_from(parsed: dict[str, _Columns], name: str) -> np.ndarray:
     missing = [c for c in "xyz" if c not in vertex or isinstance(vertex[c], tuple)]
     if missing:
         raise ValueError(f"{name}: vertex element lacks scalar properties {missing}")
-    return np.stack([vertex[c] for c in "xyz"], axis=1).astype(np.float32)
+    return _checked_vertices(np.stack([vertex[c] for c in "xyz"], axis=1), name,
+                             lambda i: f"vertex {i}")
 
 
 def _faces_from(parsed: dict[str, _Columns], elements: list[_Element], name: str) -> np.ndarray:
@@ -295,22 +384,63 @@ def _faces_from(parsed: dict[str, _Columns], elements: list[_Element], name: str
     if key is None:
         raise ValueError(f"{name}: face element has no 'vertex_indices' list")
     counts, flat = face[key]
-    if np.issubdtype(flat.dtype, np.floating) and np.any(flat != np.floor(flat)):
-        raise ValueError(f"{name}: non-integer vertex index in face data")
+    flat = _check_face_indices(counts, flat, n_vertices, name)
     if counts.size and np.all(counts == 3):  # all triangles: no index shuffling needed
-        return _check_indices(flat.astype(np.int64).reshape(-1, 3), n_vertices, name)
-    tris = fan_triangulate(counts, flat.astype(np.int64), name)
-    return _check_indices(tris, n_vertices, name)
+        return flat.astype(np.int32).reshape(-1, 3)
+    return fan_triangulate(counts, flat, name).astype(np.int32).reshape(-1, 3)
+
+
+_MAX_OBJ_INDEX = (1 << 31) - 1  # vertex numbers become int32
+
+
+def _obj_line(line: str) -> str:
+    line = line.strip()
+    return repr(line if len(line) <= 60 else line[:57] + "...")
+
+
+def _obj_records(text: str, keyword: str):
+    """(line number, line) of every `keyword` record, for error messages."""
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        words = line.split(None, 1)
+        if words and words[0] == keyword:
+            yield lineno, line
+
+
+def _obj_face_indices(words: list[str], n: int) -> list[int]:
+    """0-based vertex numbers of a face's corners; n vertices are defined so far."""
+    idx = []
+    for w in words:
+        token = w.split("/", 1)[0]
+        try:
+            idx.append(int(token))
+        except ValueError:
+            raise ValueError(f"vertex index {token!r} is not a whole number") from None
+    if len(idx) < 3:
+        raise ValueError(f"face has {len(idx)} vertices (need at least 3)")
+    if min(idx) > 0 and max(idx) <= _MAX_OBJ_INDEX:
+        return [i - 1 for i in idx]
+    for i in idx:
+        if i == 0:
+            raise ValueError("vertex index 0 (OBJ indices start at 1)")
+        if i < -n:
+            raise ValueError(f"vertex index {i} out of range (only {n} vertices come "
+                             "before this line)")
+        if i > _MAX_OBJ_INDEX:
+            raise ValueError(f"vertex index {i} out of range (a mesh has at most "
+                             f"{_MAX_OBJ_INDEX} vertices)")
+    return [i - 1 if i > 0 else n + i for i in idx]
 
 
 def read_obj(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     """Read `v` and `f` records of a Wavefront OBJ; everything else is ignored.
 
     Face corners may be `a`, `a/b`, `a//c` or `a/b/c`; negative indices count
-    back from the latest vertex, as the format specifies.
+    back from the latest vertex, as the format specifies. A file without
+    faces is refused. Errors name the file, the line and the index or
+    coordinate as written.
     """
     name = str(path)
-    text = Path(path).read_text(encoding="utf-8", errors="replace")
+    text = _read_bytes(path).decode("utf-8-sig", errors="replace")
     coords: list[list[str]] = []
     counts: list[int] = []
     corners: list[int] = []
@@ -324,26 +454,51 @@ def read_obj(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
                     raise ValueError("vertex needs 3 coordinates")
                 coords.append(words[1:4])
             elif words[0] == "f":
-                idx = [int(w.split("/", 1)[0]) for w in words[1:]]
-                if len(idx) < 3:
-                    raise ValueError(f"face has {len(idx)} vertices (need at least 3)")
-                if 0 in idx:
-                    raise ValueError("vertex index 0 (OBJ indices start at 1)")
-                n = len(coords)
-                corners.extend(i - 1 if i > 0 else n + i for i in idx)
+                idx = _obj_face_indices(words[1:], len(coords))
+                corners.extend(idx)
                 counts.append(len(idx))
         except ValueError as exc:
-            raise ValueError(f"{name}: line {lineno} {line.strip()!r}: {exc}") from None
+            raise ValueError(f"{name}: line {lineno} {_obj_line(line)}: {exc}") from None
     try:
-        vertices = np.array(coords, dtype=np.float64).reshape(-1, 3).astype(np.float32)
+        vertices = np.array(coords, dtype=np.float64).reshape(-1, 3)
     except ValueError:
-        raise ValueError(f"{name}: non-numeric vertex coordinate") from None
-    tris = fan_triangulate(np.array(counts, dtype=np.int64), np.array(corners, dtype=np.int64), name)
-    return vertices, _check_indices(tris, len(vertices), name)
+        for lineno, line in _obj_records(text, "v"):
+            for w in line.split()[1:4]:
+                try:
+                    float(w)
+                except ValueError:
+                    raise ValueError(f"{name}: line {lineno} {_obj_line(line)}: non-numeric "
+                                     f"vertex coordinate {w!r}") from None
+        raise
+
+    def vertex_line(i: int) -> str:
+        lineno, _ = next(r for k, r in enumerate(_obj_records(text, "v")) if k == i)
+        return f"line {lineno}: vertex {i + 1}"
+
+    vertices = _checked_vertices(vertices, name, vertex_line)
+    if not counts:
+        if not text.strip():
+            raise ValueError(f"{name}: the file is empty: no triangles")
+        if not coords:
+            raise ValueError(f"{name}: no faces found: not an OBJ file (no 'v' or 'f' lines)")
+        raise ValueError(f"{name}: no faces found (no 'f' lines): {len(coords)} vertices "
+                         "but no triangles")
+    counts_a = np.array(counts, dtype=np.int64)
+    flat = np.array(corners, dtype=np.int64)
+    beyond = flat >= len(vertices)  # negative indices were checked line by line
+    if beyond.any():
+        j = int(np.argmax(beyond))
+        lineno, line = next(r for k, r in enumerate(_obj_records(text, "f"))
+                            if k == _face_of(counts_a, j))
+        raise ValueError(f"{name}: line {lineno} {_obj_line(line)}: vertex index {flat[j] + 1} "
+                         f"out of range (file has {len(vertices)} vertices)")
+    return vertices, fan_triangulate(counts_a, flat, name).astype(np.int32).reshape(-1, 3)
 
 
 def read_mesh(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     """`(vertices, faces)` of a `.ply` or `.obj` file, chosen by extension."""
+    if Path(path).is_dir():
+        raise ValueError(f"{path}: is a directory, not a mesh file (.ply or .obj)")
     suffix = Path(path).suffix.lower()
     if suffix == ".ply":
         return read_ply(path)
@@ -353,8 +508,11 @@ def read_mesh(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
 
 
 def load_mesh(path: PathLike) -> np.ndarray:
-    """Triangles `(N,3,3)` float32 of a `.ply` or `.obj` file."""
+    """Triangles `(N,3,3)` float32 of a `.ply` or `.obj` file; a file
+    without faces is a ValueError."""
     vertices, faces = read_mesh(path)
+    if len(faces) == 0:
+        raise ValueError(f"{path}: the mesh has no faces: no triangles")
     return np.ascontiguousarray(vertices[faces], dtype=np.float32).reshape(-1, 3, 3)
 
 
@@ -368,6 +526,9 @@ def write_ply(path: PathLike, vertices: np.ndarray, faces: np.ndarray) -> None:
         raise ValueError(f"write_ply: faces must have shape (F, 3), got {f.shape}")
     if not np.issubdtype(f.dtype, np.integer) and f.size:
         raise TypeError(f"write_ply: faces must be integers, got {f.dtype}")
+    if not np.issubdtype(v.dtype, np.number):
+        raise TypeError(f"write_ply: vertices must be numbers, got {v.dtype}")
+    _checked_vertices(v, "write_ply", lambda i: f"vertex {i}")  # what read_ply would refuse
     _check_indices(f, len(v), "write_ply")
     header = ("ply\nformat binary_little_endian 1.0\n"
               f"element vertex {len(v)}\n"
@@ -410,6 +571,8 @@ def load_blend(path: PathLike, blender: str | None = None, timeout: float = 600.
     from .camera import Camera
 
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{path}: is a directory, not a .blend file")
     if not path.is_file():
         raise FileNotFoundError(f"no .blend file {path}")
     exe = blender or os.environ.get("BSPLAB_BLENDER") or "blender"
@@ -439,5 +602,8 @@ def load_blend(path: PathLike, blender: str | None = None, timeout: float = 600.
         kw = {k[len("camera_"):]: data[k] for k in data
               if k.startswith("camera_") and k not in ("camera_size", "camera_error")}
         kw = {k: (v if k == "matrix_world" else v.item()) for k, v in kw.items()}
-        camera = Camera(**kw)
+        try:
+            camera = Camera(**kw)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"{path.name}: the scene camera cannot be used: {e}") from None
     return tris, camera

@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from . import checks
 from .camera import Camera
 from .tree import Tree
 
@@ -85,6 +86,7 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
     if not isinstance(camera, Camera):
         raise TypeError(f"camera must be a bsplab.Camera, got {type(camera).__name__}")
     width, height = check_size(width, height)
+    progress = checks.progress(progress)
     if mode not in RENDER_MODES:
         raise ValueError(f"unknown render mode {mode!r}; modes: {', '.join(RENDER_MODES)}")
     if cull is None:

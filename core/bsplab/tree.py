@@ -39,6 +39,8 @@ class Tree:
     def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=False,
                   progress=None) -> dict:
         """Closest hits of the rays; see docs/api.md for the returned arrays.
+        `tmin`/`tmax` are scalars or per-ray arrays; None means the default
+        (0, and inf: no limit).
         `cull` skips, in each leaf, the triangles whose box misses the box of
         the ray's segment there (when the tree keeps boxes: leaf_boxes). It
         is off by default: on our SAH trees, whose leaves hold 2-5 triangles,
@@ -47,8 +49,9 @@ class Tree:
             raise TypeError(f"cull must be True or False, got {cull!r}")
         o, d = checks.rays(origins, directions)
         n = len(o)
-        lo = checks.ray_range(tmin, "tmin", n)
-        hi = checks.ray_range(tmax, "tmax", n)
+        lo = checks.ray_range(tmin, "tmin", n, default=0.0)
+        hi = checks.ray_range(tmax, "tmax", n, default=np.inf)
+        progress = checks.progress(progress)
         out = {
             "t": np.empty(n, np.float32),
             "prim": np.empty(n, np.int32),
@@ -96,5 +99,6 @@ def build(triangles, method: str = "kd", *, progress=None, **options) -> Tree:
     m = _methods.get(method)
     tris = checks.triangles(triangles)
     opts = checks.build_options(m, options)
+    progress = checks.progress(progress)
     core_tree = _core.build(tris, m.builder, core_options(m, opts), progress)
     return Tree(core_tree, method, opts)

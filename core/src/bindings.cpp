@@ -131,7 +131,8 @@ NB_MODULE(_core, m) {
         .def_prop_ro("value", &bsp::Progress::value, "Fraction done, 0..1.")
         .def_prop_ro("cancelled", &bsp::Progress::cancelled)
         .def("cancel", &bsp::Progress::cancel, "Ask the running work to stop.")
-        .def("reset", &bsp::Progress::reset);
+        .def("reset", &bsp::Progress::reset,
+             "Ready for the next job: value back to 0 and any cancel cleared.");
 
     nb::enum_<bsp::Strategy>(m, "Strategy")
         .value("axes", bsp::Strategy::Axes)

@@ -17,7 +17,11 @@ public:
     // with one atomic integer add and the total stays exact.
     static constexpr uint64_t kScale = uint64_t(1) << 52;
 
-    void reset() { done_.store(0, std::memory_order_relaxed); }
+    // Ready for the next job: nothing done and no cancel pending.
+    void reset() {
+        done_.store(0, std::memory_order_relaxed);
+        cancelled_.store(false, std::memory_order_relaxed);
+    }
     void add(uint64_t units) { done_.fetch_add(units, std::memory_order_relaxed); }
     double value() const {
         double v = double(done_.load(std::memory_order_relaxed)) / double(kScale);

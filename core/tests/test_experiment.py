@@ -169,10 +169,94 @@ def test_report_renders_tables_and_plots(tmp_path):
     ({"executor": "cloud"}, "executor must be one of"),
     ({"options": {"alpha": -1}}, "alpha"),
     ({"options": {"sparkle": 1}}, "unknown build option"),
+    ({"ks": "10..3"}, r"ks: empty range '10..3' \(the first number must not exceed the last\)"),
+    ({"seeds": "5..1"}, "seeds: empty range '5..1'"),
+    ({"method_ks": {"bsp_wn+kd": "9..4"}}, r"method_ks.bsp_wn\+kd: empty range '9..4'"),
+    ({"seeds": "1..100000000000"}, "seeds: range '1..100000000000' has 100000000000 values, "
+                                   "more than the 10000 allowed"),
+    ({"seeds": [2**63]}, "seeds must be in 0..9223372036854775807"),
+    ({"ks": [3, 5, 3]}, "ks: 3 is listed twice"),
+    ({"methods": ["kd", "kd"]}, "methods: 'kd' is listed twice"),
+    ({"scenes": ["room", "room"]}, "scenes: 'room' is listed twice"),
+    ({"workloads": ["ao", "ao"]}, "workloads: 'ao' is listed twice"),
+    ({"methods": {"kd": 1}}, "methods: give a list of method names"),
+    ({"name": 3}, "name must be a string, got a number 3"),
+    ({"name": "../up"}, "name must be a plain file name"),
+    ({"scheduler": ["tcp://x"]}, "scheduler must be a string, got a list"),
+    ({"executor": ["inline"]}, "executor must be one of"),
 ])
 def test_bad_specs_say_what_is_wrong(changes, message):
     with pytest.raises(SpecError, match=message):
         experiment.make_spec({**TINY, **changes})
+
+
+@pytest.mark.parametrize("data, kind", [([TINY], "a list"), ("tiny", "a string"),
+                                        (3, "a number"), (None, "null")])
+def test_a_spec_must_be_a_table(tmp_path, data, kind):
+    with pytest.raises(SpecError, match=f"a spec must be a table .* got {kind}$"):
+        experiment.make_spec(data)
+    path = tmp_path / "list.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(SpecError, match=f"^{path}: a spec must be a JSON object of settings "
+                                        rf".*, got {kind}$"):
+        experiment.load_spec(path)
+
+
+def test_spec_file_errors_name_the_file(tmp_path):
+    with pytest.raises(SpecError, match=f"spec file {tmp_path} is a directory"):
+        experiment.load_spec(tmp_path)
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00bad")
+    with pytest.raises(SpecError, match=rf"^{binary}: not a text \(UTF-8\) file: byte 0 is "):
+        experiment.load_spec(binary)
+    empty = tmp_path / "empty.toml"
+    empty.write_text('scenes = ["room"]\nmethods = ["rbsp"]\nks = "10..3"\n')
+    with pytest.raises(SpecError, match=f"^{empty}: ks: empty range '10..3'"):
+        experiment.load_spec(empty)
+    with pytest.raises(SpecError, match=f"^{empty} with --workers: ks: empty range"):
+        experiment.load_spec(empty, workers=2)  # the command line's keys are named too
+    (tmp_path / "scene.ply").mkdir()
+    with pytest.raises(SpecError, match="scene file .*scene.ply is a directory"):
+        experiment.make_spec({**TINY, "scenes": [str(tmp_path / "scene.ply")]})
+
+
+def _report_cli(*argv):
+    r = subprocess.run([sys.executable, "-m", "bsplab", "report", *map(str, argv)],
+                       capture_output=True, text=True)
+    assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    return r.returncode, r.stderr
+
+
+def test_report_refuses_files_that_are_not_experiment_results(tmp_path):
+    foreign = tmp_path / "foreign.csv"
+    foreign.write_text("name,value\na,1\n")
+    with pytest.raises(ValueError, match=f"^{foreign}: not the results of `python -m bsplab "
+                                         "experiment`: missing column\\(s\\) scene, "
+                                         "workload, method, k,"):
+        experiment.read_rows(foreign)
+    code, err = _report_cli(foreign, "--out", tmp_path / "r.md")
+    assert code == 2 and err.startswith(f"error: {foreign}: not the results of")
+    assert "missing column(s) scene" in err
+    # The right columns with a value that is not a number: the line is named.
+    good = experiment.ROW_FIELDS
+    row = {c: "1" for c in good} | {"scene": "room", "workload": "primary", "method": "kd",
+                                    "k": "", "trace_s": "0.1 0.2", "embree_s": "x"}
+    bad = tmp_path / "bad.csv"
+    with open(bad, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=good)
+        w.writeheader()
+        w.writerow(row)
+    with pytest.raises(ValueError, match=f"^{bad}: line 2: column embree_s has 'x', expected "
+                                         "numbers separated by spaces, or nothing$"):
+        experiment.read_rows(bad)
+    header_only = tmp_path / "header.csv"
+    header_only.write_text(",".join(good) + "\n")
+    with pytest.raises(ValueError, match="no result rows"):
+        experiment.read_rows(header_only)
+    with pytest.raises(FileNotFoundError, match="no results file .*missing.csv"):
+        experiment.read_rows(tmp_path / "missing.csv")
+    code, err = _report_cli(tmp_path / "missing.csv", "--out", tmp_path / "r.md")
+    assert code == 2 and err == f"error: no results file {tmp_path / 'missing.csv'}\n"
 
 
 def test_spec_files_and_the_command_line(tmp_path):

@@ -127,19 +127,62 @@ l 1 2
     assert io.load_mesh(path).shape == (3, 3, 3)
 
 
+OBJ3 = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+
+
 @pytest.mark.parametrize("content, message", [
-    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "out of range"),
-    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "index 0"),
+    (OBJ3 + "f 1 2 4\n", r"line 4 'f 1 2 4': vertex index 4 out of range \(file has 3 "
+                        r"vertices\)"),
+    (OBJ3 + "f 0 1 2\n", "index 0"),
     ("v 0 0 0\nv 1 0 0\nf 1 2\n", "need at least 3"),
-    ("v 0 0 zero\n", "non-numeric"),
-    ("v 0 0 0\nf a b c\n", "line 2"),
+    ("v 0 0 zero\n", "line 1 'v 0 0 zero': non-numeric vertex coordinate 'zero'"),
+    ("v 0 0 0\nf a b c\n", "line 2 'f a b c': vertex index 'a' is not a whole number"),
+    # The index as written and its line, not a 0-based or resolved number.
+    (OBJ3 + "f -1 -2 -5\n", "line 4 'f -1 -2 -5': vertex index -5 out of range "
+                           r"\(only 3 vertices come before this line\)"),
+    (OBJ3 + "f 1 2 9\n", "line 4 'f 1 2 9': vertex index 9 out of range"),
+    (OBJ3 + "f 1 2 3\nf 1 2 9/1/1\n", "line 5 'f 1 2 9/1/1': vertex index 9 out of range"),
+    (OBJ3 + "f 1 2 100000000000000000000000\n",
+     "line 4 .*: vertex index 100000000000000000000000 out of range"),
+    (OBJ3 + "f 1 2 1e23\n", "line 4 'f 1 2 1e23': vertex index '1e23' is not a whole number"),
+    ("", "the file is empty: no triangles"),
+    (OBJ3, r"no faces found \(no 'f' lines\): 3 vertices but no triangles"),
+    ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n",
+     r"line 2: vertex 2 has a NaN or infinite coordinate \(nan, 0, 0\)"),
+    ("v 0 0 0\nv 1 0 0\nv 0 -inf 0\nf 1 2 3\n", "line 3: vertex 3 has a NaN or infinite"),
+    ("v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n", "line 2: vertex 2 has a coordinate beyond "
+                                                 "the float32 range"),
 ])
 def test_obj_errors_name_file_and_problem(tmp_path, content, message):
     path = tmp_path / "bad.obj"
     path.write_text(content)
     with pytest.raises(ValueError, match=message) as err:
-        io.read_obj(path)
-    assert "bad.obj" in str(err.value)
+        io.load_mesh(path)
+    assert str(err.value).startswith(str(path) + ": ")
+
+
+def test_random_bytes_are_not_an_obj(tmp_path):
+    path = tmp_path / "noise.obj"
+    path.write_bytes(np.random.default_rng(1).bytes(4000))
+    with pytest.raises(ValueError, match="no faces found: not an OBJ file") as err:
+        io.load_mesh(path)
+    assert str(path) in str(err.value)
+
+
+def test_obj_with_byte_order_mark(tmp_path):
+    path = tmp_path / "bom.obj"
+    path.write_bytes(b"\xef\xbb\xbf" + (OBJ3 + "f 1 2 3\n").encode())
+    v, f = io.read_obj(path)
+    assert len(v) == 3 and f.tolist() == [[0, 1, 2]]  # the first vertex is not lost
+
+
+def test_a_directory_is_not_a_mesh(tmp_path):
+    for name in ("scene.ply", "scene.obj", "folder"):
+        (tmp_path / name).mkdir()
+        for read in (io.load_mesh, io.read_mesh, io.read_ply, io.read_obj):
+            with pytest.raises(ValueError, match="is a directory, not a mesh file") as err:
+                read(tmp_path / name)
+            assert str(tmp_path / name) in str(err.value)
 
 
 def _good_ply(tmp_path):
@@ -165,6 +208,92 @@ def test_ply_errors_name_file_and_problem(tmp_path):
         with pytest.raises(ValueError, match=message) as err:
             io.read_ply(tmp_path / name)
         assert name in str(err.value), name
+
+
+V3 = b"0 0 0\n1 0 0\n0 1 0\n"
+XYZ = ["float x", "float y", "float z"]
+
+
+@pytest.mark.parametrize("count, message", [
+    (b"nan", "bad list count nan"), (b"inf", "bad list count inf"),
+    (b"3.7", "bad list count 3.7"), (b"-3", "bad list count -3"),
+    (b"1e10", "list count 10000000000 is larger than the whole file"),
+])
+def test_ascii_ply_bad_list_counts(tmp_path, count, message):
+    path = tmp_path / "count.ply"
+    path.write_bytes(_header("ascii", XYZ, ["list uchar int vertex_indices"], 3, 1)
+                     + V3 + count + b" 0 1 2\n")
+    with pytest.raises(ValueError, match=message) as err:
+        io.load_mesh(path)
+    assert str(err.value).startswith(f"{path}: face 0, list 'vertex_indices': ")
+
+
+@pytest.mark.parametrize("count_type, count, message", [
+    ("char", np.array([-3], "i1"), r"bad list count -3 \(must be a whole number >= 0\)"),
+    ("uint", np.array([4_000_000_000], "<u4"), "list count 4000000000 is larger than the "
+                                              "whole file"),
+])
+def test_binary_ply_bad_list_counts(tmp_path, count_type, count, message):
+    path = tmp_path / "count.ply"
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "<f4").tobytes()
+    face = np.array([0, 1, 2], "<i4").tobytes()
+    for faces in (1, 2):  # the first record (fixed layout) and a later one (record walk)
+        first = np.array([3], count.dtype).tobytes() + face if faces == 2 else b""
+        path.write_bytes(_header("binary_little_endian", XYZ,
+                                 [f"list {count_type} int vertex_indices"], 3, faces)
+                         + verts + first + count.tobytes() + face)
+        with pytest.raises(ValueError, match=message) as err:
+            io.load_mesh(path)
+        assert str(err.value).startswith(f"{path}: face {faces - 1}, list 'vertex_indices'")
+
+
+@pytest.mark.parametrize("header, message", [
+    ({"nf": "3.7"}, "element count must be a whole number >= 0, got '3.7'"),
+    ({"nf": "nan"}, "element count must be a whole number >= 0, got 'nan'"),
+    ({"nf": "-1"}, "element count must be a whole number >= 0, got '-1'"),
+    ({"face": "list float int vertex_indices"}, "a list count must have an integer type, "
+                                                "not 'float'"),
+])
+def test_ply_header_counts(tmp_path, header, message):
+    path = tmp_path / "head.ply"
+    path.write_bytes(_header("ascii", XYZ, [header.get("face", "list uchar int vertex_indices")],
+                             3, header.get("nf", 1)) + V3 + b"3 0 1 2\n")
+    with pytest.raises(ValueError, match=re.escape(message)) as err:
+        io.load_mesh(path)
+    assert str(path) in str(err.value) and "header line" in str(err.value)
+
+
+def test_ply_refuses_nan_vertices_and_indices_at_load(tmp_path):
+    path = tmp_path / "nan.ply"
+    path.write_bytes(_header("ascii", XYZ, ["list uchar int vertex_indices"], 3, 1)
+                     + b"0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n")
+    with pytest.raises(ValueError, match=re.escape(
+            f"{path}: vertex 1 has a NaN or infinite coordinate (nan, 0, 0)")):
+        io.load_mesh(path)
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, np.inf, 0]], "<f4")
+    with pytest.raises(ValueError, match="write_ply: vertex 2 has a NaN or infinite"):
+        io.write_ply(path, verts, [[0, 1, 2]])  # the writer refuses what the reader would
+    path.write_bytes(_header("binary_little_endian", XYZ, ["list uchar int vertex_indices"], 3,
+                             1) + verts.tobytes() + b"\x03" + np.array([0, 1, 2], "<i4").tobytes())
+    with pytest.raises(ValueError, match="vertex 2 has a NaN or infinite coordinate"):
+        io.load_mesh(path)
+    path.write_bytes(_header("ascii", XYZ, ["list uchar int vertex_indices"], 3, 2)
+                     + V3 + b"3 0 1 2\n3 0 1 inf\n")
+    with pytest.raises(ValueError, match="face 1 has a non-integer vertex index inf"):
+        io.load_mesh(path)
+    path.write_bytes(_header("ascii", XYZ, ["list uchar int vertex_indices"], 3, 2)
+                     + V3 + b"3 0 1 2\n4 0 1 2 7\n")
+    with pytest.raises(ValueError, match=r"face 1: vertex index 7 out of range \(file has 3"):
+        io.load_mesh(path)
+
+
+def test_ply_without_faces_has_no_triangles(tmp_path):
+    path = tmp_path / "points.ply"
+    path.write_bytes(_header("ascii", XYZ, ["list uchar int vertex_indices"], 3, 0) + V3)
+    assert io.read_ply(path)[1].shape == (0, 3)  # a point cloud reads...
+    with pytest.raises(ValueError, match="the mesh has no faces: no triangles") as err:
+        io.load_mesh(path)  # ...but is no scene
+    assert str(path) in str(err.value)
 
 
 def test_ascii_ply_truncated(tmp_path):
