@@ -18,16 +18,23 @@ class Tree:
 
     @property
     def triangles(self) -> np.ndarray:
-        """The (N, 3, 3) float32 triangles, in input order (read-only view)."""
-        return self._tree.triangles
+        """The (N, 3, 3) float32 triangles, in input order: a read-only view,
+        or, when the tree scaled its coordinates (see `stats["scale"]`), an
+        exact copy in the input's units."""
+        tris, scale = self._tree.triangles, self._tree.scale
+        return tris if scale == 1.0 else (tris.astype(np.float64) / scale).astype(np.float32)
 
     @property
     def bounds(self) -> tuple:
-        return self._tree.bounds
+        """((x, y, z) lowest, (x, y, z) highest) corner of the live triangles."""
+        scale = self._tree.scale
+        return tuple(tuple(float(np.float32(c / scale)) for c in corner)
+                     for corner in self._tree.bounds)
 
     @property
     def stats(self) -> dict:
         s = self._tree.stats()
+        s["scale"] = self._tree.scale
         s["method"] = self.method
         s.update({f"option_{k}": v for k, v in self.options.items()})
         return s

@@ -193,6 +193,8 @@ NB_MODULE(_core, m) {
                                          t.planes.size() * sizeof(bsp::Plane));
                  return d;
              })
+        .def_ro("scale", &bsp::Tree::scale,
+                "The power of two the triangles (and bounds) were multiplied by inside the tree.")
         .def_prop_ro("bounds", [](const bsp::Tree& t) {
             return nb::make_tuple(nb::make_tuple(t.bounds.lo.x, t.bounds.lo.y, t.bounds.lo.z),
                                   nb::make_tuple(t.bounds.hi.x, t.bounds.hi.y, t.bounds.hi.z));

@@ -10,8 +10,30 @@ namespace bsp {
 namespace {
 
 bool is_degenerate(const Triangle& t) {
-    const Vec3 n = cross(t.v[1] - t.v[0], t.v[2] - t.v[0]);
-    return n.x == 0.0f && n.y == 0.0f && n.z == 0.0f;
+    double n[3];
+    t.normal_double(n);
+    return n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0;
+}
+
+// Scales every coordinate by a power of two so the largest lies in [1, 2).
+// Exact (unless a coordinate falls below 2^-126 of the largest), and it
+// keeps every product the builders and the traversal form - areas, normals,
+// edge functions, SAH costs - far from float underflow and overflow whatever
+// the scene's units: at 1e-15 the unscaled traversal found no hits, below
+// 1e-22 every triangle's float normal underflowed to zero, and at 1e19 the
+// cell areas overflowed to a NaN cost. Returns the factor.
+double normalise_scale(std::vector<Triangle>& triangles) {
+    float largest = 0;
+    for (const Triangle& t : triangles)
+        for (const Vec3& v : t.v)
+            largest = std::max({largest, std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)});
+    if (!(largest > 0) || !std::isfinite(largest)) return 1.0;
+    const double s = std::ldexp(1.0, -std::ilogb(largest));
+    if (s == 1.0) return 1.0;
+    for (Triangle& t : triangles)
+        for (Vec3& v : t.v)
+            v = Vec3(float(v.x * s), float(v.y * s), float(v.z * s));
+    return s;
 }
 
 using Direction = std::tuple<float, float, float>;
@@ -97,6 +119,7 @@ float robust_epsilon(const std::vector<Triangle>& triangles) {
 Prepared prepare(Tree& tree, const BuildOptions& options) {
     Prepared p;
     tree.options = options;
+    tree.scale = normalise_scale(tree.triangles);
     const uint32_t n = uint32_t(tree.triangles.size());
     for (uint32_t i = 0; i < n; ++i) {
         if (is_degenerate(tree.triangles[i])) continue;

@@ -26,7 +26,11 @@ bool is_axis(const Vec3& d, int& axis) {
 }
 
 Vec3 unit_normal(const Triangle& t) {
-    return canonical(cross(t.v[1] - t.v[0], t.v[2] - t.v[0]));
+    // In double: a live sliver's float cross product can be zero.
+    double n[3];
+    t.normal_double(n);
+    const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    return canonical(Vec3(float(n[0] / len), float(n[1] / len), float(n[2] / len)));
 }
 
 std::vector<Vec3> spiral_directions(int k) {

@@ -54,6 +54,19 @@ struct Triangle {
         for (const Vec3& p : v) b.extend(p);
         return b;
     }
+    // The (unnormalised) normal (v1 - v0) x (v2 - v0) in double precision.
+    // Differences of floats are exact in double and their products nearly
+    // so, so a sliver keeps its true normal where the float cross product
+    // cancels to noise or to zero; zero here means truly zero area.
+    void normal_double(double n[3]) const {
+        const double e1x = double(v[1].x) - v[0].x, e1y = double(v[1].y) - v[0].y,
+                     e1z = double(v[1].z) - v[0].z;
+        const double e2x = double(v[2].x) - v[0].x, e2y = double(v[2].y) - v[0].y,
+                     e2z = double(v[2].z) - v[0].z;
+        n[0] = e1y * e2z - e1z * e2y;
+        n[1] = e1z * e2x - e1x * e2z;
+        n[2] = e1x * e2y - e1y * e2x;
+    }
 };
 
 }  // namespace bsp

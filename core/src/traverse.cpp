@@ -238,6 +238,7 @@ template <LeafBoxes kBoxes>
 void intersect_all(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
                    Progress* progress) {
     constexpr size_t kChunk = 1024;
+    const double scale = tree.scale, inv_scale = 1.0 / tree.scale;
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
         if (progress) progress->check();
@@ -246,9 +247,20 @@ void intersect_all(const Tree& tree, const RayBatch& rays, HitBatch& hits, int t
             const float* d = rays.directions + 3 * i;
             Closest c;
             uint32_t steps = 0, general = 0, tests = 0, culled = 0;
-            trace_one<kBoxes>(tree, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]),
-                              rays.tmin[i * rays.tmin_stride], rays.tmax[i * rays.tmax_stride], c,
-                              steps, general, tests, culled);
+            const float tmin = rays.tmin[i * rays.tmin_stride];
+            const float tmax = rays.tmax[i * rays.tmax_stride];
+            if (scale == 1.0) {
+                trace_one<kBoxes>(tree, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin,
+                                  tmax, c, steps, general, tests, culled);
+            } else {
+                // Into the tree's scaled space: o and the range scale, d does not.
+                trace_one<kBoxes>(tree, Vec3(float(o[0] * scale), float(o[1] * scale),
+                                             float(o[2] * scale)),
+                                  Vec3(d[0], d[1], d[2]), float(tmin * scale),
+                                  float(tmax * scale), c, steps, general, tests, culled);
+                c.t = float(c.t * inv_scale);
+                if (!(c.t < tmax)) c.prim = -1;  // tmax * scale rounded up (or overflowed)
+            }
             const bool hit = c.prim >= 0;
             hits.t[i] = hit ? c.t : kInf;
             hits.prim[i] = c.prim;

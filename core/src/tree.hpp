@@ -120,7 +120,11 @@ struct BuildStats {
 };
 
 struct Tree {
-    std::vector<Triangle> triangles;  // input numbering, degenerate ones included
+    // Input numbering, degenerate ones included, multiplied by `scale`: a
+    // power of two that brings the largest coordinate into [1, 2) (exact).
+    // Rays are scaled the same way on the way in, distances on the way out.
+    std::vector<Triangle> triangles;
+    double scale = 1.0;
     std::vector<Node> nodes;
     std::vector<uint32_t> refs;
     std::vector<Plane> planes;

@@ -30,15 +30,11 @@ struct ShearedRay {
 
 // The ray parameter at which o + t d meets the triangle's plane, in double.
 inline double plane_distance(const Triangle& tri, const Vec3& o, const Vec3& d) {
-    const double ax = double(tri.v[0].x), ay = double(tri.v[0].y), az = double(tri.v[0].z);
-    const double e1x = double(tri.v[1].x) - ax, e1y = double(tri.v[1].y) - ay,
-                 e1z = double(tri.v[1].z) - az;
-    const double e2x = double(tri.v[2].x) - ax, e2y = double(tri.v[2].y) - ay,
-                 e2z = double(tri.v[2].z) - az;
-    const double nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z,
-                 nz = e1x * e2y - e1y * e2x;
-    const double num = nx * (ax - o.x) + ny * (ay - o.y) + nz * (az - o.z);
-    return num / (nx * d.x + ny * d.y + nz * d.z);
+    double n[3];
+    tri.normal_double(n);
+    const double num = n[0] * (double(tri.v[0].x) - o.x) + n[1] * (double(tri.v[0].y) - o.y) +
+                       n[2] * (double(tri.v[0].z) - o.z);
+    return num / (n[0] * d.x + n[1] * d.y + n[2] * d.z);
 }
 
 struct TriangleHit {
