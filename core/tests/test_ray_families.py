@@ -73,7 +73,7 @@ def test_families_agree_on_generated_scenes(scene_id, method):
 # matrix (BSPLAB_TEST_MATRIX=full) runs every method on every shared mesh.
 FULL = os.environ.get("BSPLAB_TEST_MATRIX") == "full"
 SHARED_CASES = [(f"shared:{p.stem}", m) for p in SHARED
-                if FULL or p.stem in ("sponza_dabrovic", "conference", "lost_empire")
+                if FULL or p.stem in ("sponza_dabrovic", "sibenik", "lost_empire")
                 for m in (METHODS if FULL else ("kd", "bsp_wn+kd", "bsp_cn+"))]
 
 
