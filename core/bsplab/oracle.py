@@ -75,6 +75,14 @@ class EmbreeTracer:
                 "v": np.where(hit, r["v"], 0).astype(np.float32)}
 
 
+def _hit_rows(triangles, prim, origins, directions):
+    """The rays that hit (prim >= 0): the mask, and their triangles, origins
+    and directions in double precision."""
+    ok = prim >= 0
+    return (ok, triangles[prim[ok]].astype(np.float64), origins[ok].astype(np.float64),
+            directions[ok].astype(np.float64))
+
+
 def edge_distance(triangles: np.ndarray, prim: np.ndarray, origins: np.ndarray,
                   directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance (double precision) from each ray's crossing of the plane
@@ -82,10 +90,7 @@ def edge_distance(triangles: np.ndarray, prim: np.ndarray, origins: np.ndarray,
     the magnitude of the coordinates involved. NaN where prim < 0."""
     dist = np.full(len(prim), np.nan)
     scale = np.full(len(prim), np.nan)
-    ok = prim >= 0
-    tri = triangles[prim[ok]].astype(np.float64)
-    o = origins[ok].astype(np.float64)
-    d = directions[ok].astype(np.float64)
+    ok, tri, o, d = _hit_rows(triangles, prim, origins, directions)
     e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     p = np.cross(d, e2)
     det = np.einsum("ij,ij->i", e1, p)
@@ -114,10 +119,7 @@ def plane_distance(triangles: np.ndarray, prim: np.ndarray, origins: np.ndarray,
     plane). NaN where prim < 0 or the ray runs parallel to the plane."""
     t = np.full(len(prim), np.nan)
     err = np.full(len(prim), np.nan)
-    ok = prim >= 0
-    tri = triangles[prim[ok]].astype(np.float64)
-    o = origins[ok].astype(np.float64)
-    d = directions[ok].astype(np.float64)
+    ok, tri, o, d = _hit_rows(triangles, prim, origins, directions)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     nd = np.einsum("ij,ij->i", n, d)
