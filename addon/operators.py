@@ -243,7 +243,8 @@ def error_message(core, ex):
     if core is not None and isinstance(ex, core.Cancelled):
         return "BSP Lab: Build & Render cancelled; the previous preview is unchanged"
     if isinstance(ex, MemoryError):
-        return "BSP Lab: the tree exceeds the memory budget ({})".format(ex)
+        # The core's message names the limit and what the build needed.
+        return "BSP Lab: the tree exceeds the memory budget: {}".format(ex)
     if isinstance(ex, (ValueError, TypeError)):
         # The core's checks: NaN/inf coordinates, options out of range.
         return "BSP Lab cannot build the tree: {}".format(ex)

@@ -63,7 +63,8 @@ def cmd_demo(args) -> int:
         ("references (per triangle)", f"{s['references']:,} ({s['duplication']:.2f})"),
         ("triangles per leaf (mean / max)", f"{s['mean_leaf_size']:.2f} / {s['max_leaf_size']}"),
         ("degenerate triangles", f"{s['degenerate']:,}"),
-        ("memory", f"{s['bytes'] / 2**20:.2f} MiB (nodes {s['node_bytes'] / 2**20:.2f} MiB)"),
+        ("memory", f"{s['bytes'] / 2**20:.2f} MiB (nodes {s['node_bytes'] / 2**20:.2f} MiB; "
+                   f"build peak {s['peak_bytes'] / 2**20:.2f} MiB)"),
         ("SAH cost", f"{s['sah_cost']:.2f}"),
         ("render", f"{rstats['width']}x{rstats['height']} {rstats['mode']}, "
                    f"{rstats['seconds'] * 1e3:.1f} ms, {rstats['rays_per_second'] / 1e6:.2f} Mray/s"),

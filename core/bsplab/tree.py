@@ -107,5 +107,11 @@ def build(triangles, method: str = "kd", *, progress=None, **options) -> Tree:
     tris = checks.triangles(triangles)
     opts = checks.build_options(m, options)
     progress = checks.progress(progress)
-    core_tree = _core.build(tris, m.builder, core_options(m, opts), progress)
+    try:
+        core_tree = _core.build(tris, m.builder, core_options(m, opts), progress)
+    except MemoryError as e:
+        # The core's "build needs more than ... (memory_limit_mb=...)": name the method.
+        if str(e).startswith("build needs"):
+            raise MemoryError(f"{method} {e}") from None
+        raise
     return Tree(core_tree, method, opts)

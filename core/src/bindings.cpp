@@ -13,6 +13,7 @@
 #include "bsp_build.hpp"
 #include "cell.hpp"
 #include "kd_build.hpp"
+#include "memory.hpp"
 #include "traverse.hpp"
 
 namespace nb = nanobind;
@@ -100,6 +101,7 @@ nb::dict stats(const bsp::Tree& tree) {
     static const char* kinds[] = {"none", "triangle", "clipped"};
     d["leaf_boxes"] = kinds[int(tree.options.leaf_boxes)];
     d["sah_cost"] = s.sah_cost;
+    d["peak_bytes"] = s.peak_bytes;
     nb::list planes, dirs;
     for (const bsp::LevelStats& l : s.levels) {
         planes.append(l.planes);
@@ -124,6 +126,14 @@ NB_MODULE(_core, m) {
     m.doc() = "BSP Lab core: kd/BSP tree construction and ray traversal";
 
     nb::exception<bsp::Cancelled>(m, "Cancelled", PyExc_RuntimeError);
+    // Over memory_limit_mb: a MemoryError that says what the build needed.
+    nb::register_exception_translator([](const std::exception_ptr& p, void*) {
+        try {
+            std::rethrow_exception(p);
+        } catch (const bsp::MemoryLimitExceeded& e) {
+            PyErr_SetString(PyExc_MemoryError, e.what());
+        }
+    });
 
     nb::class_<bsp::Progress>(m, "Progress",
                               "Progress of a build or trace; cancel() from any thread.")

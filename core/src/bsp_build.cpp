@@ -27,6 +27,7 @@ struct Ref {
 struct NodeRefs {
     std::vector<Ref> refs;
     std::vector<Vec3> pool;
+    Charge charge;  // both arrays' bytes in the memory budget
 };
 
 // The one projection every decision uses: sweep counts and classification
@@ -47,11 +48,15 @@ struct SweepResult {
     Candidate fallback;  // ^Kd: general splits at the constant K_d,BSP
 };
 
+// BSP_IZE's per-node BVH over the references: a box, a centre, an order slot
+// and about half a BVH node per reference.
+constexpr uint64_t kIzeBytesPerRef = 2 * sizeof(Box) + sizeof(Vec3) + sizeof(uint32_t);
+
 class BspBuilder {
 public:
     BspBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
-               int threads)
-        : tris_(tris), opt_(opt), progress_(progress), threads_(threads) {
+               int threads, MemoryBudget& memory)
+        : tris_(tris), opt_(opt), progress_(progress), threads_(threads), memory_(memory) {
         spawn_depth_ = spawn_depth(threads);
         // A general plane's crossing is computed as (d - n.o) / (n.dir) in
         // float, off by a few ulps of the coordinates; two planes with almost
@@ -66,19 +71,30 @@ public:
         }
     }
 
+    // `credit`: the memory budget of the build task (thread) running this node.
     std::unique_ptr<BuildNode> build(NodeRefs refs, Cell cell, int depth, double budget,
-                                     uint64_t id) {
+                                     uint64_t id, TaskCredit& credit) {
         if (progress_) progress_->check();
+        memory_.check();
         const size_t n = refs.refs.size();
         const double area = cell.area();
         if (int(n) <= opt_.leaf_size || depth >= opt_.max_depth || !(area > 0))
-            return leaf(refs, area, depth);
+            return leaf(refs, area, depth, credit);
 
+        // The node's scratch space while it looks for a plane: its triangle
+        // ids, the sweeps' position arrays (per thread), BSP_IZE's reference BVH.
+        Charge scratch(credit,
+                       uint64_t(n) * (sizeof(uint32_t) + 3 * sizeof(float) * uint64_t(threads_) +
+                                      (opt_.strategy == Strategy::Ize ? kIzeBytesPerRef : 0)),
+                       depth, "a node's sweep buffers");
         Rng rng(Rng::mix(opt_.seed, id));
-        std::vector<uint32_t> tri_ids(n);
-        for (size_t i = 0; i < n; ++i) tri_ids[i] = refs.refs[i].tri;
         std::vector<Vec3> dirs;
-        node_directions(opt_, fixed_, tris_, tri_ids.data(), n, rng, dirs);
+        {
+            // Freed before the children are built: recursion would hold it per level.
+            std::vector<uint32_t> tri_ids(n);
+            for (size_t i = 0; i < n; ++i) tri_ids[i] = refs.refs[i].tri;
+            node_directions(opt_, fixed_, tris_, tri_ids.data(), n, rng, dirs);
+        }
 
         SweepResult total;
         std::vector<SweepResult> per_dir(dirs.size());
@@ -93,15 +109,40 @@ public:
         const float leaf_cost = opt_.intersect_cost * float(n);
         Candidate s = total.best;
         if (!(s.cost < leaf_cost)) s = total.fallback;  // Ize et al.'s retry at a constant cost
-        if (!(s.cost < leaf_cost)) return leaf(refs, area, depth);
+        if (!(s.cost < leaf_cost)) return leaf(refs, area, depth, credit);
         const double total_refs = double(s.n_left) + double(s.n_right);
-        if (total_refs > budget) return leaf(refs, area, depth);
+        if (total_refs > budget) return leaf(refs, area, depth, credit);
 
+        // The children's references are charged before they are made, their
+        // clipped polygons (whose size the split decides) as soon as they are.
+        scratch.reset();
         NodeRefs left, right;
+        {
+            Charge work(credit, sizeof(Ref) * (uint64_t(s.n_left) + s.n_right) + kBuildNodeBytes,
+                        depth, "the children's references");
+            left.charge = work.take(sizeof(Ref) * s.n_left);
+            right.charge = work.take(sizeof(Ref) * s.n_right);
+            work.keep();  // this node
+        }
+        left.refs.reserve(s.n_left);
+        right.refs.reserve(s.n_right);
         split_refs(refs, s, left, right);
         refs = NodeRefs();  // the children have their own copies now
+        {
+            // What the children hold beyond their charged references.
+            auto owed = [](const NodeRefs& r) {
+                const uint64_t held =
+                    r.refs.capacity() * sizeof(Ref) + r.pool.capacity() * sizeof(Vec3);
+                return held > r.charge.bytes() ? held - r.charge.bytes() : 0;
+            };
+            const uint64_t lpool = owed(left);
+            Charge pools(credit, lpool + owed(right), depth, "the clipped polygons");
+            left.charge.absorb(pools.take(lpool));
+            right.charge.absorb(std::move(pools));
+        }
         Cell lcell, rcell;
         cell.split(Vec3d(s.dir), double(s.pos), lcell, rcell);
+        cell = Cell();
 
         auto node = std::make_unique<BuildNode>();
         node->area = float(area);
@@ -119,13 +160,18 @@ public:
         if (depth < spawn_depth_ && n > 4096) {
             auto right_task = std::async(std::launch::async, [&, r = std::move(right),
                                                              c = std::move(rcell)]() mutable {
-                return build(std::move(r), std::move(c), depth + 1, rbudget, rid);
+                TaskCredit task_credit(memory_);
+                r.charge.move_to(task_credit);
+                return build(std::move(r), std::move(c), depth + 1, rbudget, rid, task_credit);
             });
-            node->child[0] = build(std::move(left), std::move(lcell), depth + 1, lbudget, lid);
+            node->child[0] =
+                build(std::move(left), std::move(lcell), depth + 1, lbudget, lid, credit);
             node->child[1] = right_task.get();
         } else {
-            node->child[0] = build(std::move(left), std::move(lcell), depth + 1, lbudget, lid);
-            node->child[1] = build(std::move(right), std::move(rcell), depth + 1, rbudget, rid);
+            node->child[0] =
+                build(std::move(left), std::move(lcell), depth + 1, lbudget, lid, credit);
+            node->child[1] =
+                build(std::move(right), std::move(rcell), depth + 1, rbudget, rid, credit);
         }
         return node;
     }
@@ -136,6 +182,7 @@ private:
     Progress* progress_;
     int threads_;
     int spawn_depth_;
+    MemoryBudget& memory_;
     std::vector<Vec3> fixed_;
     float eps_ = 0;  // the fattening of extents along non-axis directions
 
@@ -162,7 +209,9 @@ private:
         if (!axis) lo -= eps_, hi += eps_;
     }
 
-    std::unique_ptr<BuildNode> leaf(const NodeRefs& nr, double area, int depth) const {
+    std::unique_ptr<BuildNode> leaf(const NodeRefs& nr, double area, int depth,
+                                    TaskCredit& credit) const {
+        Charge(credit, leaf_bytes(opt_, nr.refs.size()), depth, "a leaf").keep();
         auto node = std::make_unique<BuildNode>();
         node->area = float(area);
         std::vector<uint32_t> order(nr.refs.size());
@@ -518,14 +567,17 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
 
 Tree build_bsp_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                     Progress* progress) {
-    return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep) {
+    return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep,
+                                                          MemoryBudget& memory) {
+        TaskCredit credit(memory);
         NodeRefs refs;
+        refs.charge = Charge(credit, sizeof(Ref) * prep.live.size(), 0, "the references");
         refs.refs.reserve(prep.live.size());
         for (uint32_t i : prep.live) refs.refs.push_back({i, 0, 0});
         BspBuilder builder(tree.triangles, tree.options, progress,
-                           resolve_threads(options.threads));
+                           resolve_threads(options.threads), memory);
         return builder.build(std::move(refs), Cell::from_box(tree.bounds), 0, prep.ref_budget,
-                             options.seed);
+                             options.seed, credit);
     });
 }
 

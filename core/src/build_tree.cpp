@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <new>
 #include <stdexcept>
 #include <tuple>
@@ -43,7 +44,8 @@ struct StatsWalker {
     BuildStats& st;
     double inv_root_area = 0;
     double leaf_depth_sum = 0;
-    std::vector<std::vector<Direction>> level_dirs;
+    uint64_t single_leaves = 0;  // one-reference leaves: inlined unless boxes are clipped
+    std::vector<std::vector<Direction>> level_dirs{};
 
     void walk(const BuildNode& n, int depth) {
         const double p = double(n.area) * inv_root_area;
@@ -52,6 +54,7 @@ struct StatsWalker {
             ++st.leaves;
             const uint64_t c = n.refs.size();
             if (c == 0) ++st.empty_leaves;
+            if (c == 1) ++single_leaves;
             st.references += c;
             st.max_leaf_size = std::max(st.max_leaf_size, c);
             leaf_depth_sum += depth;
@@ -138,7 +141,7 @@ Prepared prepare(Tree& tree, const BuildOptions& options) {
     return p;
 }
 
-void finish(Tree& tree, const BuildNode& root) {
+void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
     BuildStats& st = tree.stats;
     StatsWalker w{tree.options, st};
     w.inv_root_area = root.area > 0 ? 1.0 / double(root.area) : 0.0;
@@ -151,9 +154,39 @@ void finish(Tree& tree, const BuildNode& root) {
         ls.directions = uint64_t(std::unique(dirs.begin(), dirs.end()) - dirs.begin());
         st.levels.push_back(ls);
     }
+
+    // The flat tree's size is known before it is built: check the limit
+    // first, then count the flat arrays while the pointer tree still exists.
+    const bool clipped = tree.options.leaf_boxes == LeafBoxes::Clipped;
+    const uint64_t n_nodes = st.interior_nodes + st.leaves;
+    const uint64_t n_refs = st.references - (clipped ? 0 : w.single_leaves);
+    const uint64_t n_boxes = tree.options.leaf_boxes == LeafBoxes::Triangle ? tree.triangles.size()
+                             : clipped                                    ? st.references
+                                                                          : 0;
+    const uint64_t flat = n_nodes * sizeof(Node) + n_refs * sizeof(uint32_t) +
+                          st.general_nodes * sizeof(Plane) + n_boxes * sizeof(Box);
+    const uint64_t total = flat + tree.triangles.size() * sizeof(Triangle);
+    if (double(total) > budget.limit_bytes()) {
+        char buf[256];
+        std::snprintf(buf, sizeof buf,
+                      "the finished tree takes %s (%llu nodes, %llu references, %llu triangles"
+                      "%s); raise memory_limit_mb, or lower max_duplication or max_depth",
+                      format_mb(double(total)).c_str(), (unsigned long long)n_nodes,
+                      (unsigned long long)st.references,
+                      (unsigned long long)tree.triangles.size(),
+                      n_boxes ? (", " + format_mb(double(n_boxes * sizeof(Box))) + " of boxes").c_str()
+                              : "");
+        budget.fail(budget.headline() + buf);
+    }
+    TaskCredit credit(budget);
+    Charge flat_charge(credit, flat, -1, "the flat tree");
+    tree.nodes.reserve(n_nodes);
+    tree.refs.reserve(n_refs);
+    tree.planes.reserve(st.general_nodes);
+    tree.boxes.reserve(n_boxes);
+
     Flattener{tree}.emit(root);
     if (tree.options.leaf_boxes == LeafBoxes::Triangle) {
-        tree.boxes.reserve(tree.triangles.size());
         for (const Triangle& t : tree.triangles) tree.boxes.push_back(t.bounds());
     }
     tree.cull_pad = 2.0f * robust_epsilon(tree.triangles);
@@ -162,7 +195,6 @@ void finish(Tree& tree, const BuildNode& root) {
     st.bytes = tree.nodes.size() * sizeof(Node) + tree.refs.size() * sizeof(uint32_t) +
                tree.planes.size() * sizeof(Plane) + tree.triangles.size() * sizeof(Triangle) +
                st.box_bytes;
-    if (double(st.bytes) > tree.options.memory_limit_mb * 1024.0 * 1024.0) throw std::bad_alloc();
 }
 
 }  // namespace bsp

@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "memory.hpp"
 #include "progress.hpp"
 #include "tree.hpp"
 
@@ -20,6 +21,14 @@ struct BuildNode {
     std::vector<uint32_t> refs;
     std::vector<Box> ref_boxes;  // LeafBoxes::Clipped: the clipped box of each reference
 };
+static_assert(kBuildNodeBytes >= sizeof(BuildNode) + 16, "a build node costs more than charged");
+
+// What a leaf with `count` references costs in the pointer tree.
+inline uint64_t leaf_bytes(const BuildOptions& opt, size_t count) {
+    const uint64_t per_ref =
+        sizeof(uint32_t) + (opt.leaf_boxes == LeafBoxes::Clipped ? sizeof(Box) : 0);
+    return kBuildNodeBytes + per_ref * count;
+}
 
 // The fattening of extents along non-axis planes and the padding of the
 // segment box in leaf culling: 2^-19 of the scene's largest coordinate, well
@@ -36,8 +45,9 @@ struct Prepared {
 Prepared prepare(Tree& tree, const BuildOptions& options);
 
 // Fills tree.stats from the pointer tree, flattens it into tree.nodes/refs/
-// planes, and enforces the memory limit (std::bad_alloc).
-void finish(Tree& tree, const BuildNode& root);
+// planes, and enforces the memory limit on the finished tree and on the
+// flattening (MemoryLimitExceeded, before anything is flattened).
+void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget);
 
 // Subtrees go to parallel tasks down to this depth: a few more tasks than
 // cores, for balance. Every task builds the same nodes it would serially.
@@ -55,9 +65,10 @@ inline void split_budget(double budget, double n_left, double n_right, double& l
     right = budget - left;
 }
 
-// Runs a builder: prepares the tree, lets build_root(tree, prepared) build
-// the pointer tree over the live triangles (not called when there are none),
-// then fills the statistics, flattens, and times the whole build.
+// Runs a builder: prepares the tree, lets build_root(tree, prepared, budget)
+// build the pointer tree over the live triangles (not called when there are
+// none), then fills the statistics, flattens, and times the whole build. The
+// memory budget starts with the triangles themselves.
 template <class BuildRoot>
 Tree run_builder(std::vector<Triangle> triangles, const BuildOptions& options,
                  BuildRoot&& build_root) {
@@ -65,9 +76,14 @@ Tree run_builder(std::vector<Triangle> triangles, const BuildOptions& options,
     Tree tree;
     tree.triangles = std::move(triangles);
     const Prepared prep = prepare(tree, options);
+    MemoryBudget budget(options.memory_limit_mb);
+    budget.charge(tree.triangles.capacity() * sizeof(Triangle) +
+                      prep.live.capacity() * sizeof(uint32_t),
+                  -1, "the triangles");
     std::unique_ptr<BuildNode> root =
-        prep.live.empty() ? std::make_unique<BuildNode>() : build_root(tree, prep);
-    finish(tree, *root);
+        prep.live.empty() ? std::make_unique<BuildNode>() : build_root(tree, prep, budget);
+    finish(tree, *root, budget);
+    tree.stats.peak_bytes = budget.peak();
     tree.stats.build_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return tree;

@@ -37,7 +37,15 @@ using EventList = std::vector<Event>;
 struct NodeEvents {
     EventList axis[3];
     uint32_t count = 0;  // triangles in the node
+    Charge charge;       // the lists' bytes in the memory budget
 };
+
+// The memory budget's view of a node's event lists: two events per axis per
+// triangle at most (a planar one has one), charged before they are filled.
+constexpr uint64_t kEventBytesPerRef = 6 * sizeof(Event);
+// A triangle straddling a split while the children's lists are made: its
+// index and its clipped events on both sides, before they are merged in.
+constexpr uint64_t kStraddleBytes = sizeof(uint32_t) + 2 * kEventBytesPerRef;
 
 // A triangle's events along axis k: one planar event, or a start and an end.
 void add_axis_events(const Box& b, uint32_t tri, int k, EventList& out) {
@@ -69,14 +77,18 @@ enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2 };
 class KdBuilder {
 public:
     KdBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
-              int threads)
-        : tris_(tris), opt_(opt), progress_(progress), threads_(threads) {
+              int threads, MemoryBudget& memory)
+        : tris_(tris), opt_(opt), progress_(progress), threads_(threads), memory_(memory) {
         spawn_depth_ = spawn_depth(threads);
     }
 
+    // A build task: the root, or a subtree on a thread of its own.
     std::unique_ptr<BuildNode> build(NodeEvents ev, const Box& box, int depth, double budget) {
+        TaskCredit credit(memory_);
+        ev.charge.move_to(credit);
+        const Charge side_charge(credit, tris_.size(), depth, "a build task's triangle marks");
         std::vector<uint8_t> side(tris_.size());
-        return build_node(std::move(ev), box, depth, budget, side);
+        return build_node(std::move(ev), box, depth, budget, side, credit);
     }
 
 private:
@@ -85,6 +97,7 @@ private:
     Progress* progress_;
     int threads_;
     int spawn_depth_;
+    MemoryBudget& memory_;
 
     // The cheapest SAH split along axis k, sweeping its sorted events once.
     Split find_split_axis(const NodeEvents& ev, const Box& box, int k) const {
@@ -232,7 +245,9 @@ private:
         }
     }
 
-    std::unique_ptr<BuildNode> make_leaf(const NodeEvents& ev, const Box& box, int depth) const {
+    std::unique_ptr<BuildNode> make_leaf(const NodeEvents& ev, const Box& box, int depth,
+                                         TaskCredit& credit) const {
+        Charge(credit, leaf_bytes(opt_, ev.count), depth, "a leaf").keep();
         auto node = std::make_unique<BuildNode>();
         node->area = box.area();
         node->refs.reserve(ev.count);
@@ -258,21 +273,38 @@ private:
     }
 
     std::unique_ptr<BuildNode> build_node(NodeEvents ev, const Box& box, int depth, double budget,
-                                          std::vector<uint8_t>& side) {
+                                          std::vector<uint8_t>& side, TaskCredit& credit) {
         if (progress_) progress_->check();
+        memory_.check();
         const float leaf_cost = opt_.intersect_cost * float(ev.count);
-        if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth) return make_leaf(ev, box, depth);
+        if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth)
+            return make_leaf(ev, box, depth, credit);
         const Split s = find_split(ev, box);
-        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, box, depth);
+        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, box, depth, credit);
         const double refs = double(s.n_left) + double(s.n_right);
-        if (refs > budget) return make_leaf(ev, box, depth);
+        if (refs > budget) return make_leaf(ev, box, depth, credit);
+
+        // Charged before anything is allocated: the children's lists (they
+        // go with them), the straddling triangles' new events (freed after
+        // the split) and this node (kept).
+        const uint64_t children = uint64_t(s.n_left) + s.n_right;
+        const uint64_t straddling = children > ev.count ? children - ev.count : 0;
+        Charge work(credit,
+                    kEventBytesPerRef * children + kStraddleBytes * straddling + kBuildNodeBytes,
+                    depth, "the children's event lists");
+        NodeEvents left, right;
+        left.charge = work.take(kEventBytesPerRef * s.n_left);
+        right.charge = work.take(kEventBytesPerRef * s.n_right);
+        work.take(kBuildNodeBytes).keep();
 
         Box lbox = box, rbox = box;
         lbox.hi[s.axis] = s.pos;
         rbox.lo[s.axis] = s.pos;
         classify(ev, s, side);
-        NodeEvents left, right;
         split_events(ev, s, lbox, rbox, side, left, right);
+        // split_events freed the node's own lists: one release for both.
+        work.absorb(std::move(ev.charge));
+        work.reset();
 
         double lbudget, rbudget;
         split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
@@ -285,11 +317,11 @@ private:
             auto right_task = std::async(std::launch::async, [&, r = std::move(right)]() mutable {
                 return build(std::move(r), rbox, depth + 1, rbudget);
             });
-            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side);
+            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side, credit);
             node->child[1] = right_task.get();
         } else {
-            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side);
-            node->child[1] = build_node(std::move(right), rbox, depth + 1, rbudget, side);
+            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side, credit);
+            node->child[1] = build_node(std::move(right), rbox, depth + 1, rbudget, side, credit);
         }
         return node;
     }
@@ -299,9 +331,12 @@ private:
 
 Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                    Progress* progress) {
-    return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep) {
+    return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep,
+                                                          MemoryBudget& memory) {
+        TaskCredit credit(memory);
         NodeEvents root;
         root.count = uint32_t(prep.live.size());
+        root.charge = Charge(credit, kEventBytesPerRef * prep.live.size(), 0, "the event lists");
         const int threads = resolve_threads(options.threads);
         // The three axes' event lists are independent: fill and sort them in parallel.
         parallel_for(3, 1, threads, [&](size_t k0, size_t k1) {
@@ -312,7 +347,7 @@ Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                 std::sort(e.begin(), e.end());
             }
         });
-        KdBuilder builder(tree.triangles, tree.options, progress, threads);
+        KdBuilder builder(tree.triangles, tree.options, progress, threads, memory);
         return builder.build(std::move(root), tree.bounds, 0, prep.ref_budget);
     });
 }

@@ -9,8 +9,8 @@ namespace bsp {
 
 // Builds a kd-tree over `triangles` (moved into the tree). Zero-area
 // triangles keep their index but are left out of the tree, so they are never
-// hit. Throws Cancelled when `progress` is cancelled, std::bad_alloc when the
-// tree would exceed options.memory_limit_mb.
+// hit. Throws Cancelled when `progress` is cancelled, MemoryLimitExceeded (a
+// std::bad_alloc) as soon as the build would exceed options.memory_limit_mb.
 Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                    Progress* progress = nullptr);
 

@@ -116,6 +116,7 @@ struct BuildStats {
     int max_depth = 0, depth_limit = 0;
     double mean_leaf_depth = 0, sah_cost = 0;
     uint64_t bytes = 0, box_bytes = 0;
+    uint64_t peak_bytes = 0;  // the most the memory budget counted at once during the build
     std::vector<LevelStats> levels;
 };
 
