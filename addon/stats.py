@@ -7,6 +7,10 @@ The statistics are a dict of sections: `scene`, `build` (the tree's
 """
 
 import math
+import textwrap
+
+# Characters per line of a warning in the sidebar at its default width.
+WARNING_WIDTH = 24
 
 
 def _seconds(value):
@@ -137,6 +141,22 @@ def sections(stats):
     return out
 
 
+def warnings(stats):
+    """The tree's warnings (a degenerate tree: one huge leaf, or a tree far
+    too small for the scene), each as a sentence; [] when the tree is sound."""
+    build = (stats or {}).get("build") or {}
+    return [str(w) for w in build.get("warnings") or ()]
+
+
+def warning_lines(warning, width=WARNING_WIDTH):
+    """One warning wrapped into lines short enough for the sidebar; its head
+    ("degenerate tree: ...") becomes a line of its own."""
+    head, sep, rest = warning.partition(": ")
+    if sep and len(head) < width:
+        return [head[:1].upper() + head[1:] + ":"] + (textwrap.wrap(rest, width) or [])
+    return textwrap.wrap(warning, width) or [warning]
+
+
 def table(stats):
     """The statistics as plain text, one `label: value` line per row."""
     lines = []
@@ -145,4 +165,7 @@ def table(stats):
         width = max(len(label) for label, _ in rows)
         for label, text in rows:
             lines.append("  {:<{}}  {}".format(label, width, text))
+        if title == "Build":
+            for warning in warnings(stats):
+                lines.append("  WARNING: {}".format(warning))
     return "\n".join(lines)

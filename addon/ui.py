@@ -108,6 +108,14 @@ class BSPLAB_PT_stats(BSPLabPanel, bpy.types.Panel):
                 row = col.split(factor=0.5)
                 row.label(text=label)
                 row.label(text=text)
+            if title == "Build":
+                # A degenerate tree (one huge leaf, or far too few nodes):
+                # say so in red, wrapped to the sidebar's width.
+                for warning in stats.warnings(context.scene.bsplab.stats):
+                    warn = box.column(align=True)
+                    warn.alert = True
+                    for i, line in enumerate(stats.warning_lines(warning)):
+                        warn.label(text=line, icon='ERROR' if i == 0 else 'BLANK1')
 
 
 class BSPLAB_PT_sweep(BSPLabPanel, bpy.types.Panel):

@@ -10,14 +10,16 @@ import pytest
 class RecordingLayout:
     """Stands in for `UILayout`: records what is drawn, checks property names."""
 
-    def __init__(self, log=None):
+    def __init__(self, log=None, icons=None):
         self.log = log if log is not None else []
+        self.icons = icons if icons is not None else []  # (icon, text, alert) of each label
         self.use_property_split = False
         self.use_property_decorate = True
         self.enabled = True
+        self.alert = False
 
     def _child(self, *_args, **_kwargs):
-        return RecordingLayout(self.log)
+        return RecordingLayout(self.log, self.icons)
 
     column = row = box = split = _child
 
@@ -25,8 +27,9 @@ class RecordingLayout:
         assert name in data.bl_rna.properties, name
         self.log.append(("prop", name))
 
-    def label(self, text="", **kwargs):
+    def label(self, text="", icon='NONE', **kwargs):
         self.log.append(("label", text))
+        self.icons.append((icon, text, self.alert))
 
     def operator(self, idname, **kwargs):
         self.log.append(("operator", idname))
@@ -38,11 +41,18 @@ class RecordingLayout:
         pass
 
 
-def draw(panel_class):
-    layout = RecordingLayout()
+def draw(panel_class, layout=None):
+    layout = layout or RecordingLayout()
     panel = types.SimpleNamespace(layout=layout, draw_button=getattr(panel_class, "draw_button", None))
     panel_class.draw(panel, bpy.context)
     return layout.log
+
+
+def draw_icons(panel_class):
+    """The labels drawn, as (icon, text, alert)."""
+    layout = RecordingLayout()
+    draw(panel_class, layout)
+    return layout.icons
 
 
 def test_main_panel(addon, core, empty_scene):
@@ -99,6 +109,46 @@ def test_stats_panel(addon, empty_scene):
                      "Rays/s", "2.50 M", "Steps / Ray", "4.00", "Tests / Ray", "2.00",
                      "embreex is not installed"):
         assert expected in texts
+
+
+DEGENERATE = ("degenerate tree: one leaf holds 180 of the 206 triangles (87%), "
+              "so every ray reaching it tests them all")
+
+
+def test_stats_panel_warns_of_a_degenerate_tree(addon, empty_scene):
+    build = {"build_seconds": 0.5, "nodes": 3, "leaves": 2, "method": "kd", "warnings": []}
+    empty_scene.bsplab.stats_json = json.dumps({"build": build})
+    assert not any(icon == 'ERROR' for icon, _, _ in draw_icons(addon.ui.BSPLAB_PT_stats))
+    build["warnings"] = [DEGENERATE]
+    empty_scene.bsplab.stats_json = json.dumps({"build": build})
+    labels = draw_icons(addon.ui.BSPLAB_PT_stats)
+    lines = addon.stats.warning_lines(DEGENERATE)
+    # Wrapped for the narrow sidebar, in red, the first line with the alert icon.
+    assert lines[0] == "Degenerate tree:"
+    assert " ".join(lines[1:]) == DEGENERATE[len("degenerate tree: "):]
+    assert all(len(line) <= addon.stats.WARNING_WIDTH for line in lines)
+    assert ('ERROR', lines[0], True) in labels
+    assert [text for _, text, alert in labels if alert] == lines
+    # Right after the Build rows, before the Render box.
+    texts = [text for _, text, _ in labels]
+    assert texts.index("Leaf Boxes") < texts.index(lines[0]) < texts.index("Render")
+    assert "WARNING: " + DEGENERATE in addon.stats.table({"build": build})
+
+
+def test_build_of_a_degenerate_tree_shows_the_warning(addon, core, test_scene):
+    """The whole way: a one-level tree over the test scene leaves most of its
+    triangles in one leaf; the core says so and the panel shows it."""
+    scene = test_scene["scene"]
+    scene.bsplab.max_depth = 1
+    assert bpy.ops.bsplab.build_render() == {'FINISHED'}
+    warnings = scene.bsplab.stats["build"]["warnings"]
+    assert warnings and warnings[0].startswith("degenerate tree: one leaf holds")
+    labels = draw_icons(addon.ui.BSPLAB_PT_stats)
+    assert ('ERROR', addon.stats.warning_lines(warnings[0])[0], True) in labels
+    scene.bsplab.max_depth = 0
+    assert bpy.ops.bsplab.build_render() == {'FINISHED'}
+    assert scene.bsplab.stats["build"]["warnings"] == []
+    assert not any(icon == 'ERROR' for icon, _, _ in draw_icons(addon.ui.BSPLAB_PT_stats))
 
 
 @pytest.mark.parametrize("agreement", [1.0, 0.99])

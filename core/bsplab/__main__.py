@@ -66,6 +66,7 @@ def cmd_demo(args) -> int:
         ("memory", f"{s['bytes'] / 2**20:.2f} MiB (nodes {s['node_bytes'] / 2**20:.2f} MiB; "
                    f"build peak {s['peak_bytes'] / 2**20:.2f} MiB)"),
         ("SAH cost", f"{s['sah_cost']:.2f}"),
+        *(("WARNING", w) for w in s["warnings"]),
         ("render", f"{rstats['width']}x{rstats['height']} {rstats['mode']}, "
                    f"{rstats['seconds'] * 1e3:.1f} ms, {rstats['rays_per_second'] / 1e6:.2f} Mray/s"),
         ("steps / tests per ray", f"{rstats['mean_steps']:.1f} / {rstats['mean_tests']:.2f}"),

@@ -116,10 +116,11 @@ def run(scene_names: list[str], method_names: list[str], primary_side: int = 512
 
 def summary_line(r: Row) -> str:
     p, q = r.results["primary"], r.results["random"]
-    return (f"{r.scene:>16} {r.method:>6}: build {r.build_seconds:6.2f}s  "
+    line = (f"{r.scene:>16} {r.method:>6}: build {r.build_seconds:6.2f}s  "
             f"primary {p['speed_1t']:.2f}x Embree (1 thread), {p['speed_2t']:.2f}x (2)  "
             f"random {q['speed_1t']:.2f}x / {q['speed_2t']:.2f}x  "
             f"agree {min(p['agreement'], q['agreement']) * 100:.4f}%")
+    return "\n".join([line] + [f"{'':>16} WARNING: {w}" for w in r.stats.get("warnings", ())])
 
 
 def markdown(rows: list[Row], command: str) -> str:
@@ -152,6 +153,10 @@ def markdown(rows: list[Row], command: str) -> str:
             f"{r.embree_build_seconds:.2f} | {s['nodes']:,} | {s['leaves']:,} | "
             f"{s['max_depth']} | {s['duplication']:.2f} | {s['mean_leaf_size']:.2f} | "
             f"{s['bytes'] / 2**20:.1f} | {s['sah_cost']:.1f} |")
+    warned = [(r, w) for r in rows for w in r.stats.get("warnings", ())]
+    if warned:
+        lines.append("")
+        lines += [f"**Warning** ({r.scene}, {r.method}): {w}." for r, w in warned]
     for wname in ("primary", "random"):
         lines += [
             "",

@@ -102,6 +102,9 @@ nb::dict stats(const bsp::Tree& tree) {
     d["leaf_boxes"] = kinds[int(tree.options.leaf_boxes)];
     d["sah_cost"] = s.sah_cost;
     d["peak_bytes"] = s.peak_bytes;
+    nb::list warnings;
+    for (const std::string& w : s.warnings) warnings.append(w);
+    d["warnings"] = warnings;
     nb::list planes, dirs;
     for (const bsp::LevelStats& l : s.levels) {
         planes.append(l.planes);

@@ -141,6 +141,31 @@ Prepared prepare(Tree& tree, const BuildOptions& options) {
     return p;
 }
 
+std::vector<std::string> degeneracy_warnings(const BuildStats& st) {
+    std::vector<std::string> out;
+    const uint64_t live = st.triangles - st.degenerate;
+    char buf[256];
+    if (st.max_leaf_size > kBigLeafMin && double(st.max_leaf_size) > kBigLeafShare * double(live)) {
+        std::snprintf(buf, sizeof buf,
+                      "degenerate tree: one leaf holds %llu of the %llu triangles (%.0f%%), "
+                      "so every ray reaching it tests them all",
+                      (unsigned long long)st.max_leaf_size, (unsigned long long)live,
+                      100.0 * double(st.max_leaf_size) / double(live));
+        out.push_back(buf);
+    }
+    const uint64_t full = st.leaves - st.empty_leaves;
+    const double mean_leaf = full ? double(st.references) / double(full) : 0.0;
+    if (live > kSmallTreeMin && (mean_leaf > double(kBigLeafMin) || 4 * st.max_depth < st.depth_limit)) {
+        std::snprintf(buf, sizeof buf,
+                      "degenerate tree: %llu nodes, depth %d (limit %d) for %llu triangles; "
+                      "a leaf holds %.0f triangles on average",
+                      (unsigned long long)(st.interior_nodes + st.leaves), st.max_depth,
+                      st.depth_limit, (unsigned long long)live, mean_leaf);
+        out.push_back(buf);
+    }
+    return out;
+}
+
 void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
     BuildStats& st = tree.stats;
     StatsWalker w{tree.options, st};
@@ -154,6 +179,7 @@ void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
         ls.directions = uint64_t(std::unique(dirs.begin(), dirs.end()) - dirs.begin());
         st.levels.push_back(ls);
     }
+    st.warnings = degeneracy_warnings(st);
 
     // The flat tree's size is known before it is built: check the limit
     // first, then count the flat arrays while the pointer tree still exists.

@@ -44,6 +44,18 @@ struct Prepared {
 // Copies the options, counts degenerate triangles, sets bounds and limits.
 Prepared prepare(Tree& tree, const BuildOptions& options);
 
+// A tree degenerates - and stats.warnings says so - when
+//  * its largest leaf holds more than kBigLeafMin triangles and more than
+//    kBigLeafShare of the live triangles: every ray reaching it tests them all;
+//  * or, with more than kSmallTreeMin live triangles, the tree is small for the
+//    scene: its non-empty leaves hold more than kBigLeafMin triangles on
+//    average, or it stays shallower than a quarter of its depth limit.
+// Well-built SAH trees hold a few triangles per leaf and reach their depth limit.
+constexpr uint64_t kBigLeafMin = 64;
+constexpr double kBigLeafShare = 0.05;
+constexpr uint64_t kSmallTreeMin = 10000;
+std::vector<std::string> degeneracy_warnings(const BuildStats& stats);
+
 // Fills tree.stats from the pointer tree, flattens it into tree.nodes/refs/
 // planes, and enforces the memory limit on the finished tree and on the
 // flattening (MemoryLimitExceeded, before anything is flattened).

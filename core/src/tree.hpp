@@ -118,6 +118,8 @@ struct BuildStats {
     uint64_t bytes = 0, box_bytes = 0;
     uint64_t peak_bytes = 0;  // the most the memory budget counted at once during the build
     std::vector<LevelStats> levels;
+    // Signs of a degenerate tree (degeneracy_warnings() in build_tree.cpp), one sentence each.
+    std::vector<std::string> warnings;
 };
 
 struct Tree {
