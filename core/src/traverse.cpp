@@ -163,9 +163,14 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
                 // its flat cell skipped.
                 const float inv_nd = 1.0f / nd;
                 tplane = (p.d - no) * inv_nd;
-                // Parallel to the plane (t = +-inf): on the origin's side for
-                // good, unless the origin lies within the error of the plane.
-                err = nd != 0.0f ? (cross_a + std::fabs(tplane) * cross_b) * std::fabs(inv_nd)
+                // An axis plane's crossing is computed exactly like a kd
+                // node's (the zero terms of n.o and n.dir are exact), so it
+                // needs no widening either. Parallel to a general plane
+                // (t = +-inf): on the origin's side for good, unless the
+                // origin lies within the error of the plane.
+                const bool axis_plane = (p.nx == 0.0f) + (p.ny == 0.0f) + (p.nz == 0.0f) == 2;
+                err = axis_plane ? 0.0f
+                      : nd != 0.0f ? (cross_a + std::fabs(tplane) * cross_b) * std::fabs(inv_nd)
                       : std::fabs(p.d - no) > cross_a ? 0.0f
                                                       : std::numeric_limits<float>::quiet_NaN();
                 down = std::signbit(nd);
