@@ -9,7 +9,7 @@ BIN    := $(VENV)/bin
 DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4" \
           "matplotlib>=3.7" "dask[distributed]>=2024.1" "hypothesis>=6.100"
 
-.PHONY: all venv core demo demo-core test test-core test-blender bench bench-family bench-cull results results-quick addon scenes clean
+.PHONY: all venv core demo demo-core test test-core test-sanitize test-tsan test-blender bench bench-family bench-cull results results-quick addon scenes clean
 
 all: demo
 
@@ -35,10 +35,23 @@ demo: core
 demo-core: core
 	$(BIN)/python -m bsplab demo --scene spheres --out out/demo.png
 
-test: test-core test-blender
+test: test-core test-sanitize test-blender
 
 test-core: core
 	$(BIN)/python -m pytest -q core/tests
+
+# The core built with AddressSanitizer + UndefinedBehaviorSanitizer in folders
+# of its own (core/build/asan, out/sanitize/asan; .venv's install is left
+# alone), running the core suite's fast part (pytest -m "not slow"); any
+# report fails it. About 3-4 minutes with the compile. docs/testing.md.
+test-sanitize: venv
+	@echo
+	@echo "=== Core under AddressSanitizer + UndefinedBehaviorSanitizer (fast part: pytest -m 'not slow') ==="
+	BSPLAB_PYTHON=$(abspath $(BIN)/python) bash core/tools/sanitize.sh asan
+
+# ThreadSanitizer over the parallel builders and traces; by hand, not in CI.
+test-tsan: venv
+	BSPLAB_PYTHON=$(abspath $(BIN)/python) bash core/tools/sanitize.sh tsan
 
 test-blender: core
 	bash blender_tests/run_all.sh $(abspath $(BIN)/python)

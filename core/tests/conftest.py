@@ -1,12 +1,18 @@
-"""Shared fixtures: the scenes every tree is checked on, loaded once."""
+"""Shared fixtures: the scenes every tree is checked on, loaded once. Also
+the `slow` marker (the suite minus its fast part, which the sanitizer build
+runs: `pytest -m "not slow"`) and the check that a sanitizer run really
+imports the sanitized core."""
 
 from __future__ import annotations
 
 import functools
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import bsplab
 from bsplab import io, scenes, workloads
 
 SHARED = workloads.shared_scene_paths()
@@ -28,5 +34,52 @@ def scene(request) -> tuple[str, np.ndarray]:
 
 def pytest_report_header(config):
     d = workloads.shared_scenes_dir()
-    return f"shared scenes: {d} ({len(SHARED)} meshes)" if d else \
-        "shared scenes: absent (their tests are skipped)"
+    return [f"shared scenes: {d} ({len(SHARED)} meshes)" if d else
+            "shared scenes: absent (their tests are skipped)",
+            f"bsplab core: {bsplab._core.__file__}"]
+
+
+# The slow part: every case on a shared mesh; the agreement matrix on the
+# larger generated scenes (its small room keeps every method at every K);
+# the clipped-box check on the spheres; the build-determinism sweep over
+# every method; the experiment runner's tests (Python bookkeeping around
+# the same builds and traces). What is left (`-m "not slow"`) still builds
+# every method and traces with and without culling; core/tools/sanitize.sh
+# runs it under ASan + UBSan in about 2 minutes.
+SLOW_TESTS = {
+    "test_agreement.py::test_build_is_deterministic_across_thread_counts",
+    "test_bsp.py::test_more_directions_find_cheaper_trees",
+}
+SLOW_FILES = {"test_experiment.py"}
+SLOW_ON_SCENES = {
+    "test_agreement.py::test_hits_agree_with_embree": ("gen:spheres", "gen:fan"),
+    "test_culling.py::test_clipped_boxes_agree_with_embree": ("gen:spheres",),
+}
+
+
+def is_slow(item) -> bool:
+    name = f"{item.path.name}::{getattr(item, 'originalname', item.name)}"
+    params = item.callspec.id if hasattr(item, "callspec") else ""
+    return ("shared:" in params or "shared_scene" in name or name in SLOW_TESTS
+            or item.path.name in SLOW_FILES
+            or any(s in params for s in SLOW_ON_SCENES.get(name, ())))
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "slow: outside the fast part that the sanitizer build runs (conftest.is_slow)")
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if is_slow(item):
+            item.add_marker(pytest.mark.slow)
+
+
+def pytest_sessionstart(session):
+    # core/tools/sanitize.sh sets this to the folder of its sanitized build.
+    expected = os.environ.get("BSPLAB_EXPECT_CORE")
+    if expected:
+        got = Path(bsplab._core.__file__).resolve()
+        if Path(expected).resolve() not in got.parents:
+            pytest.exit(f"bsplab._core is {got}, not the build in {expected}", returncode=3)
