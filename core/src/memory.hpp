@@ -60,14 +60,20 @@ public:
     // the build: throws MemoryLimitExceeded naming what asked for them
     // (`what`, e.g. "the children's event lists") and the node's depth.
     void charge(uint64_t bytes, int depth, const char* what) {
-        if (!try_charge(bytes)) fail(used() + bytes, bytes, depth, what);
+        // The total that did not fit, not used() + bytes afterwards: another
+        // task may release in between, and the message would then name less
+        // than the limit it says was exceeded.
+        uint64_t would_be = 0;
+        if (!try_charge(bytes, &would_be)) fail(would_be, bytes, depth, what);
     }
 
-    // Counts `bytes` more if they fit under the limit.
-    bool try_charge(uint64_t bytes) {
+    // Counts `bytes` more if they fit under the limit; otherwise stores the
+    // total they would have made in *would_be.
+    bool try_charge(uint64_t bytes, uint64_t* would_be = nullptr) {
         const uint64_t now = used_.fetch_add(bytes, std::memory_order_relaxed) + bytes;
         if (double(now) > limit_) {
             used_.fetch_sub(bytes, std::memory_order_relaxed);
+            if (would_be) *would_be = now;
             return false;
         }
         uint64_t peak = peak_.load(std::memory_order_relaxed);
