@@ -86,6 +86,9 @@ void set_rbsp_set(BuildOptions& o, const OptionValue& v) {
     else throw std::invalid_argument("must be auto, spiral or dop, got " + s);
 }
 
+// The name, field and setter of an option that sets the numeric field of its name.
+#define NUMBER_FIELD(f) .name = #f, .field = #f, .apply = set_field<&BuildOptions::f>
+
 OptionValue whole(int64_t v) { return OptionValue(v); }
 OptionValue real(double v) { return OptionValue(v); }
 
@@ -94,108 +97,92 @@ std::vector<OptionSpec> make_option_specs() {
     // Limits are written as today's checks wrote them (whole or real), so
     // their messages print them the same way.
     return {
-        {.name = "traversal_cost", .type = T::Float, .group = "common", .default_value = real(1.0),
-         .min = whole(0), .max = real(1e6), .min_open = true, .soft_max = 10.0,
-         .label = "Traversal Cost", .short_label = "Traversal",
-         .help = "SAH cost of visiting one interior node (K_d; every step without ^Kd)",
-         .field = "traversal_cost", .apply = set_field<&BuildOptions::traversal_cost>},
-        {.name = "intersect_cost", .type = T::Float, .group = "common", .default_value = real(1.5),
-         .min = whole(0), .max = real(1e6), .min_open = true, .soft_max = 10.0,
-         .label = "Intersection Cost", .short_label = "Intersection",
-         .help = "SAH cost of one ray-triangle test (K_i)",
-         .field = "intersect_cost", .apply = set_field<&BuildOptions::intersect_cost>},
-        {.name = "empty_bonus", .type = T::Float, .group = "common", .default_value = real(0.2),
-         .min = whole(0), .max = real(0.99),
-         .label = "Empty Bonus", .short_label = "Empty",
-         .help = "SAH discount for splits that cut off empty space",
-         .field = "empty_bonus", .apply = set_field<&BuildOptions::empty_bonus>},
-        {.name = "max_depth", .type = T::Int, .group = "common", .default_value = whole(0),
-         .min = whole(0), .max = whole(64),
-         .label = "Max Depth", .short_label = "Max Depth",
-         .help = "Maximum tree depth (0: automatic, 8 + 1.3 log2 N)",
-         .field = "max_depth", .apply = set_field<&BuildOptions::max_depth>},
-        {.name = "leaf_size", .type = T::Int, .group = "common", .default_value = whole(1),
-         .min = whole(1), .max = whole(1 << 20), .soft_max = 64,
-         .label = "Leaf Size", .short_label = "Leaf Size",
-         .help = "Stop splitting nodes with at most this many triangles",
-         .field = "leaf_size", .apply = set_field<&BuildOptions::leaf_size>},
-        {.name = "max_duplication", .type = T::Float, .group = "common", .default_value = real(8.0),
-         .min = whole(1), .max = whole(1000), .soft_max = 32.0,
+        {NUMBER_FIELD(traversal_cost), .type = T::Float, .group = "common",
+         .default_value = real(1.0), .min = whole(0), .max = real(1e6), .min_open = true,
+         .soft_max = 10.0, .label = "Traversal Cost", .short_label = "Traversal",
+         .help = "SAH cost of visiting one interior node (K_d; every step without ^Kd)"},
+        {NUMBER_FIELD(intersect_cost), .type = T::Float, .group = "common",
+         .default_value = real(1.5), .min = whole(0), .max = real(1e6), .min_open = true,
+         .soft_max = 10.0, .label = "Intersection Cost", .short_label = "Intersection",
+         .help = "SAH cost of one ray-triangle test (K_i)"},
+        {NUMBER_FIELD(empty_bonus), .type = T::Float, .group = "common", .default_value = real(0.2),
+         .min = whole(0), .max = real(0.99), .label = "Empty Bonus", .short_label = "Empty",
+         .help = "SAH discount for splits that cut off empty space"},
+        {NUMBER_FIELD(max_depth), .type = T::Int, .group = "common", .default_value = whole(0),
+         .min = whole(0), .max = whole(64), .label = "Max Depth", .short_label = "Max Depth",
+         .help = "Maximum tree depth (0: automatic, 8 + 1.3 log2 N)"},
+        {NUMBER_FIELD(leaf_size), .type = T::Int, .group = "common", .default_value = whole(1),
+         .min = whole(1), .max = whole(1 << 20), .soft_max = 64, .label = "Leaf Size",
+         .short_label = "Leaf Size",
+         .help = "Stop splitting nodes with at most this many triangles"},
+        {NUMBER_FIELD(max_duplication), .type = T::Float, .group = "common",
+         .default_value = real(8.0), .min = whole(1), .max = whole(1000), .soft_max = 32.0,
          .label = "Max Duplication", .short_label = "Duplication",
-         .help = "Stop splitting when triangle references exceed this multiple of the triangles",
-         .field = "max_duplication", .apply = set_field<&BuildOptions::max_duplication>},
-        {.name = "memory_limit_mb", .type = T::Float, .group = "common",
+         .help = "Stop splitting when triangle references exceed this multiple of the triangles"},
+        {NUMBER_FIELD(memory_limit_mb), .type = T::Float, .group = "common",
          .default_value = real(4096.0), .min = whole(0), .min_open = true,
          .label = "Memory Limit (MB)", .short_label = "Memory",
-         .help = "The build stops with a MemoryError beyond this many megabytes",
-         .field = "memory_limit_mb", .apply = set_field<&BuildOptions::memory_limit_mb>},
-        {.name = "threads", .type = T::Int, .group = "common", .default_value = whole(0),
-         .min = whole(0), .max = whole(1024), .soft_max = 64,
-         .label = "Threads", .short_label = "Threads",
-         .help = "Worker threads of the core (0: all cores)",
-         .field = "threads", .apply = set_field<&BuildOptions::threads>},
-        {.name = "leaf_boxes", .type = T::Enum, .group = "common",
+         .help = "The build stops with a MemoryError beyond this many megabytes"},
+        {NUMBER_FIELD(threads), .type = T::Int, .group = "common", .default_value = whole(0),
+         .min = whole(0), .max = whole(1024), .soft_max = 64, .label = "Threads",
+         .short_label = "Threads", .help = "Worker threads of the core (0: all cores)"},
+        {.name = "leaf_boxes", .field = "leaf_boxes", .apply = set_leaf_boxes,
+         .type = T::Enum, .group = "common",
          .default_value = OptionValue("triangle"),
          .choices = {{"none", "None", "No boxes: leaf culling is not possible", {}},
-                     {"triangle", "Triangle", "Each triangle's own box (24 bytes per triangle)", {}},
+                     {"triangle", "Triangle",
+                      "Each triangle's own box (24 bytes per triangle)", {}},
                      {"clipped", "Clipped",
                       "Each reference's box clipped to its leaf cell (24 bytes per reference; "
                       "culls more)", {}}},
          .label = "Leaf Boxes", .short_label = "Leaf Boxes",
-         .help = "Boxes kept for leaf culling with the ray segment's box",
-         .field = "leaf_boxes", .apply = set_leaf_boxes},
+         .help = "Boxes kept for leaf culling with the ray segment's box"},
         // The BSP family. K's limits here are the widest; a method narrows
         // them (MethodSpec::min_k, max_k).
-        {.name = "k", .type = T::Int, .group = "bsp", .default_value = whole(6),
-         .min = whole(1), .max = whole(kMaxK), .per_method_limits = true,
-         .label = "K", .short_label = "K",
-         .help = "Number of split directions tried per node",
-         .field = "k", .apply = set_field<&BuildOptions::k>},
-        {.name = "seed", .type = T::Int, .group = "bsp", .default_value = whole(1),
+        {NUMBER_FIELD(k), .type = T::Int, .group = "bsp", .default_value = whole(6),
+         .min = whole(1), .max = whole(kMaxK), .per_method_limits = true, .label = "K",
+         .short_label = "K", .help = "Number of split directions tried per node"},
+        {NUMBER_FIELD(seed), .type = T::Int, .group = "bsp", .default_value = whole(1),
          .min = whole(0), .max = whole(INT64_MAX),
          .label = "Seed", .short_label = "Seed",
-         .help = "Seed of the random choices of randomised methods",
-         .field = "seed", .apply = set_field<&BuildOptions::seed>},
+         .help = "Seed of the random choices of randomised methods"},
         // The ^Kd costs: Ize et al. (2008) price a general node at
         // alpha * K_i * (n - 1) + K_d with alpha = 0.1, and fall back to a
         // constant K_d,BSP; general_cost = 2 K_d reflects that a general
         // step (two dot products and a division) costs about twice a kd step
         // (one subtraction and one multiplication) in our traversal.
-        {.name = "alpha", .type = T::Float, .group = "bsp", .default_value = real(0.1),
-         .min = whole(0), .max = real(1e3), .soft_max = 1.0,
-         .label = "Alpha", .short_label = "Alpha",
-         .help = "Per-triangle factor of a general (non-axis) node's traversal cost",
-         .field = "alpha", .apply = set_field<&BuildOptions::alpha>},
-        {.name = "general_cost", .type = T::Float, .group = "bsp", .default_value = real(2.0),
+        {NUMBER_FIELD(alpha), .type = T::Float, .group = "bsp", .default_value = real(0.1),
+         .min = whole(0), .max = real(1e3), .soft_max = 1.0, .label = "Alpha",
+         .short_label = "Alpha",
+         .help = "Per-triangle factor of a general (non-axis) node's traversal cost"},
+        {NUMBER_FIELD(general_cost), .type = T::Float, .group = "bsp", .default_value = real(2.0),
          .min = whole(0), .max = real(1e6), .min_open = true, .soft_max = 10.0,
          .label = "General Cost", .short_label = "General",
-         .help = "Traversal cost of a general (non-axis) node",
-         .field = "general_cost", .apply = set_field<&BuildOptions::general_cost>},
-        {.name = "rbsp_set", .type = T::Enum, .group = "bsp", .default_value = OptionValue("auto"),
+         .help = "Traversal cost of a general (non-axis) node"},
+        {.name = "rbsp_set", .field = "fixed_set", .apply = set_rbsp_set,
+         .type = T::Enum, .group = "bsp", .default_value = OptionValue("auto"),
          .choices = {{"auto", "Auto",
-                      "k-DOP directions for K = 3, 7, 9, 13, else the axes plus a golden spiral", {}},
+                      "k-DOP directions for K = 3, 7, 9, 13, else the axes plus a golden spiral",
+                      {}},
                      {"spiral", "Spiral", "K directions on a golden spiral", {}},
                      {"dop", "k-DOP", "The k-DOP directions (K = 3, 7, 9 or 13)", kDopSizes}},
          .label = "Directions", .short_label = "Directions",
-         .help = "The fixed direction set of RBSP",
-         .field = "fixed_set", .apply = set_rbsp_set},
-        {.name = "cluster_iterations", .type = T::Int, .group = "bsp", .default_value = whole(16),
-         .min = whole(1), .max = whole(500),
+         .help = "The fixed direction set of RBSP"},
+        {NUMBER_FIELD(cluster_iterations), .type = T::Int, .group = "bsp",
+         .default_value = whole(16), .min = whole(1), .max = whole(500),
          .label = "Cluster Iterations", .short_label = "Iterations",
-         .help = "k-means iterations for clustering the node's normals",
-         .field = "cluster_iterations", .apply = set_field<&BuildOptions::cluster_iterations>},
-        {.name = "cluster_sample", .type = T::Int, .group = "bsp", .default_value = whole(1024),
-         .min = whole(1), .max = whole(1 << 24), .soft_max = 65536,
-         .label = "Cluster Sample", .short_label = "Sample",
-         .help = "Normals sampled per node for the clustering",
-         .field = "cluster_sample", .apply = set_field<&BuildOptions::cluster_sample>},
-        {.name = "ize_candidates", .type = T::Int, .group = "bsp", .default_value = whole(64),
-         .min = whole(1), .max = whole(1 << 20), .soft_max = 4096,
-         .label = "IZE Candidates", .short_label = "Candidates",
-         .help = "Triangles whose own and edge planes are tried per node at most",
-         .field = "ize_candidates", .apply = set_field<&BuildOptions::ize_candidates>},
+         .help = "k-means iterations for clustering the node's normals"},
+        {NUMBER_FIELD(cluster_sample), .type = T::Int, .group = "bsp", .default_value = whole(1024),
+         .min = whole(1), .max = whole(1 << 24), .soft_max = 65536, .label = "Cluster Sample",
+         .short_label = "Sample", .help = "Normals sampled per node for the clustering"},
+        {NUMBER_FIELD(ize_candidates), .type = T::Int, .group = "bsp", .default_value = whole(64),
+         .min = whole(1), .max = whole(1 << 20), .soft_max = 4096, .label = "IZE Candidates",
+         .short_label = "Candidates",
+         .help = "Triangles whose own and edge planes are tried per node at most"},
     };
 }
+
+#undef NUMBER_FIELD
 
 // ---- The methods -------------------------------------------------------------
 
@@ -218,7 +205,8 @@ void add_family(std::vector<MethodSpec>& out, const std::string& base, const std
                 const std::string& what, const std::string& strategy, const Options& options,
                 int64_t k_default) {
     const std::vector<std::pair<std::string, OptionValue>> k = {{"k", whole(k_default)}};
-    out.push_back({base, label, what + " at every node.", "bsp", strategy, false, false, options, k});
+    out.push_back(
+        {base, label, what + " at every node.", "bsp", strategy, false, false, options, k});
     out.push_back({base + "+", label + "+", "The three axes plus " + lower(what) + ".", "bsp",
                    strategy, true, false, options, k});
     out.push_back({base + "+kd", label + "+ ^Kd",
@@ -299,7 +287,8 @@ std::unique_ptr<DirectionStrategy> make_strategy(const BuildOptions& options) {
                                 known);
 }
 
-BuildOptions options_for(const MethodSpec& method, const std::map<std::string, OptionValue>& values) {
+BuildOptions options_for(const MethodSpec& method,
+                         const std::map<std::string, OptionValue>& values) {
     BuildOptions o;
     o.strategy = method.strategy;
     o.plus_axes = method.plus_axes;

@@ -32,19 +32,19 @@ struct Choice {
 
 struct OptionSpec {
     std::string name;
-    OptionType type;
+    std::string field;  // the BuildOptions field it sets
+    void (*apply)(BuildOptions&, const OptionValue&) = nullptr;
+    OptionType type = OptionType::Float;
     std::string group;  // "common": every method has it; "bsp": the methods that list it
     OptionValue default_value;
     // Closed limits unless min_open; none where the value is unbounded.
     // Kept as written (whole or real) so messages print them the same way.
-    std::optional<OptionValue> min, max;
+    std::optional<OptionValue> min = {}, max = {};
     bool min_open = false;
     bool per_method_limits = false;  // K: min/max are the widest; see MethodSpec::min_k/max_k
-    std::optional<double> soft_max;  // where a slider should end (the add-on)
-    std::vector<Choice> choices;     // Enum only
+    std::optional<double> soft_max = {};  // where a slider should end (the add-on)
+    std::vector<Choice> choices = {};     // Enum only
     std::string label, short_label, help;
-    std::string field;  // the BuildOptions field it sets
-    void (*apply)(BuildOptions&, const OptionValue&);
 };
 
 struct MethodSpec {
@@ -53,8 +53,8 @@ struct MethodSpec {
     std::string strategy = "axes"; // a name in strategy_names()
     bool plus_axes = false;        // "+": the three axes are among the K directions
     bool kd_nodes = false;         // ^Kd: axis splits stored and traversed as kd nodes
-    std::vector<std::string> options;  // the "bsp" options that apply, beyond the common ones
-    std::vector<std::pair<std::string, OptionValue>> defaults;  // the method's own defaults
+    std::vector<std::string> options = {};  // the "bsp" options that apply, beyond the common ones
+    std::vector<std::pair<std::string, OptionValue>> defaults = {};  // the method's own defaults
 
     // A "+" method counts the three axes among its K, so it needs K >= 3.
     int min_k() const { return plus_axes ? 3 : 1; }
@@ -75,6 +75,7 @@ std::unique_ptr<DirectionStrategy> make_strategy(const BuildOptions& options);
 
 // The method's BuildOptions with `values` (checked by the caller against the
 // specs' limits; here only names and types are checked) set by name.
-BuildOptions options_for(const MethodSpec& method, const std::map<std::string, OptionValue>& values);
+BuildOptions options_for(const MethodSpec& method,
+                         const std::map<std::string, OptionValue>& values);
 
 }  // namespace bsp

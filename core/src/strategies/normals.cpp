@@ -8,7 +8,8 @@ class NormalsStrategy final : public DirectionStrategy {
 public:
     void directions(const NodeTriangles& node, size_t k, Rng& rng,
                     std::vector<Vec3>& out) const override {
-        for (uint32_t i : draw(node.count, k, rng)) out.push_back(unit_normal(node.all[node.ids[i]]));
+        for (uint32_t i : draw(node.count, k, rng))
+            out.push_back(unit_normal(node.all[node.ids[i]]));
     }
 };
 
