@@ -40,9 +40,9 @@ def _panel_order(schema):
 
 
 def _limits(spec):
-    """Blender's min/max/soft_max keywords for one option's schema."""
+    """Blender's min/max/soft_max keywords for one option's schema. (K's are
+    the widest over the methods; the operator checks the chosen method's.)"""
     out = {}
-    # (K's limits are the widest over the methods; the operator checks the method's.)
     if spec["min"] is not None:
         out["min"] = spec["min"] + (OPEN_MIN_STEP if spec["min_open"] else 0)
     if spec["max"] is not None:
