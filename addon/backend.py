@@ -19,7 +19,9 @@ MISSING_MESSAGE = (
 FALLBACK_METHODS = {
     "kd": {"label": "kd-tree", "description": "Core not installed", "params": []},
 }
-FALLBACK_RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests")
+# Only what the enum needs to have an item: nothing renders without the core,
+# and a copy of the core's list would drift from it (`bsplab.RENDER_MODES`).
+FALLBACK_RENDER_MODES = ("shaded",)
 
 
 class CoreMissing(Exception):
@@ -46,6 +48,15 @@ def methods():
     if core is None:
         return FALLBACK_METHODS
     return core.methods()
+
+
+def option_schema():
+    """Name -> schema of every build option (the core's registry); empty
+    without the core, whose absence the panel reports."""
+    core = core_or_none()
+    if core is None:
+        return {}
+    return core.option_schema()
 
 
 def render_modes():

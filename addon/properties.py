@@ -20,27 +20,58 @@ from . import backend
 _method_items = []
 _mode_items = []
 
-# Build options the panel can edit, in the panel's order. A method's `params`
-# in `bsplab.methods()` says which apply to it; options the add-on does not
-# know keep the core's defaults.
-BUILD_OPTIONS = (
-    "k",
-    "seed",
-    "rbsp_set",
-    "cluster_iterations",
-    "cluster_sample",
-    "ize_candidates",
-    "traversal_cost",
-    "intersect_cost",
-    "empty_bonus",
-    "alpha",
-    "general_cost",
-    "max_depth",
-    "leaf_size",
-    "max_duplication",
-    "leaf_boxes",
-    "threads",
-)
+# Options the panel leaves at the core's defaults: a build that needs more
+# than the default memory limit is no preview.
+HIDDEN_OPTIONS = ("memory_limit_mb",)
+
+# A Blender property's limit for an open lower limit (a cost "> 0"): the
+# smallest step the panel's fields show.
+OPEN_MIN_STEP = 0.001
+
+# IntProperty is 32-bit.
+INT_PROPERTY_MAX = 2**31 - 1
+
+
+def _panel_order(schema):
+    """The BSP family's options first (what differs between methods), then
+    the common ones, each group in the core's order."""
+    names = [name for name in schema if name not in HIDDEN_OPTIONS]
+    return tuple(sorted(names, key=lambda name: schema[name]["group"] != "bsp"))
+
+
+def _limits(spec):
+    """Blender's min/max/soft_max keywords for one option's schema. (K's are
+    the widest over the methods; the operator checks the chosen method's.)"""
+    out = {}
+    if spec["min"] is not None:
+        out["min"] = spec["min"] + (OPEN_MIN_STEP if spec["min_open"] else 0)
+    if spec["max"] is not None:
+        out["max"] = spec["max"]
+    if spec["soft_max"] is not None:
+        out["soft_max"] = spec["soft_max"]
+    if spec["type"] == "int":
+        out = {key: int(min(value, INT_PROPERTY_MAX)) for key, value in out.items()}
+    return out
+
+
+def option_property(spec):
+    """The bpy property of one build option: its name, help text, default
+    and limits all from the core's registry (`bsplab.method_table.OPTIONS`)."""
+    common = {"name": spec["label"], "description": spec["help"]}
+    if spec["type"] == "enum":
+        items = tuple((c["name"], c["label"], c["help"]) for c in spec["choices"])
+        return EnumProperty(items=items, default=spec["default"], **common)
+    if spec["type"] == "int":
+        return IntProperty(default=spec["default"], **common, **_limits(spec))
+    return FloatProperty(default=spec["default"], **common, **_limits(spec))
+
+
+# The build options the panel can edit, in the panel's order; empty when the
+# core is missing (nothing can be built then). A method's `params` in
+# `bsplab.methods()` says which apply to it.
+OPTION_SCHEMA = backend.option_schema()
+BUILD_OPTIONS = _panel_order(OPTION_SCHEMA)
+SWEEP_K_MAX = OPTION_SCHEMA["k"]["max"] if "k" in OPTION_SCHEMA else INT_PROPERTY_MAX
 
 
 def _method_enum_items(_self, _context):
@@ -79,96 +110,10 @@ class BSPLabSettings(bpy.types.PropertyGroup):
         items=_method_enum_items,
         update=_method_changed,
     )
-    k: IntProperty(
-        name="K",
-        description="Number of split directions tried per node",
-        default=6, min=1, max=64,
-    )
-    seed: IntProperty(
-        name="Seed",
-        description="Seed of the random choices of randomised methods",
-        default=1, min=0,
-    )
-    rbsp_set: EnumProperty(
-        name="Directions",
-        description="The fixed direction set of RBSP",
-        items=(
-            ('auto', "Auto", "k-DOP directions for K = 3, 7, 9, 13, else the axes plus a golden spiral"),
-            ('spiral', "Spiral", "K directions on a golden spiral"),
-            ('dop', "k-DOP", "The k-DOP directions (K = 3, 7, 9 or 13)"),
-        ),
-        default='auto',
-    )
-    cluster_iterations: IntProperty(
-        name="Cluster Iterations",
-        description="k-means iterations for clustering the node's normals",
-        default=16, min=1, max=500,
-    )
-    cluster_sample: IntProperty(
-        name="Cluster Sample",
-        description="Normals sampled per node for the clustering",
-        default=1024, min=1, soft_max=65536,
-    )
-    ize_candidates: IntProperty(
-        name="IZE Candidates",
-        description="Triangle planes tried per node",
-        default=256, min=1, soft_max=4096,
-    )
-    traversal_cost: FloatProperty(
-        name="Traversal Cost",
-        description="SAH cost of visiting one interior node",
-        default=1.0, min=0.001, soft_max=10.0,
-    )
-    intersect_cost: FloatProperty(
-        name="Intersection Cost",
-        description="SAH cost of one ray-triangle test",
-        default=1.5, min=0.001, soft_max=10.0,
-    )
-    empty_bonus: FloatProperty(
-        name="Empty Bonus",
-        description="SAH discount for splits that cut off empty space",
-        default=0.2, min=0.0, max=0.99,
-    )
-    alpha: FloatProperty(
-        name="Alpha",
-        description="Per-triangle factor of a general (non-axis) node's traversal cost",
-        default=0.1, min=0.0, soft_max=1.0,
-    )
-    general_cost: FloatProperty(
-        name="General Cost",
-        description="Traversal cost of a general (non-axis) node",
-        default=2.0, min=0.001, soft_max=10.0,
-    )
-    max_depth: IntProperty(
-        name="Max Depth",
-        description="Maximum tree depth (0: automatic, 8 + 1.3 log2 N)",
-        default=0, min=0, max=64,
-    )
-    leaf_size: IntProperty(
-        name="Leaf Size",
-        description="Stop splitting nodes with at most this many triangles",
-        default=1, min=1, soft_max=64,
-    )
-    max_duplication: FloatProperty(
-        name="Max Duplication",
-        description="Stop splitting when triangle references exceed this multiple of the triangles",
-        default=8.0, min=1.0, soft_max=32.0,
-    )
     preview_percentage: IntProperty(
         name="Preview Resolution",
         description="Preview size as a percentage of the scene's render resolution",
         default=50, min=1, max=100, subtype='PERCENTAGE',
-    )
-    leaf_boxes: EnumProperty(
-        name="Leaf Boxes",
-        description="Boxes kept for leaf culling with the ray segment's box",
-        items=(
-            ('triangle', "Triangle", "Each triangle's own box (24 bytes per triangle)"),
-            ('clipped', "Clipped", "Each reference's box clipped to its leaf cell "
-                                   "(24 bytes per reference; culls more)"),
-            ('none', "None", "No boxes: leaf culling is not possible"),
-        ),
-        default='triangle',
     )
     cull: BoolProperty(
         name="Leaf Culling",
@@ -185,11 +130,6 @@ class BSPLabSettings(bpy.types.PropertyGroup):
         name="Compare with Embree",
         description="Trace the same camera rays with Embree and compare hits and time",
         default=False,
-    )
-    threads: IntProperty(
-        name="Threads",
-        description="Worker threads of the core (0: all cores)",
-        default=0, min=0, soft_max=64,
     )
 
     # The result, written by the operator only. JSON keeps the nested
@@ -208,10 +148,10 @@ class BSPLabSettings(bpy.types.PropertyGroup):
         default="bsp_wn+kd bsp_cn+kd",
     )
     sweep_k_min: IntProperty(
-        name="K From", description="Smallest K of the sweep", default=3, min=1, max=64,
+        name="K From", description="Smallest K of the sweep", default=3, min=1, max=SWEEP_K_MAX,
     )
     sweep_k_max: IntProperty(
-        name="K To", description="Largest K of the sweep", default=8, min=1, max=64,
+        name="K To", description="Largest K of the sweep", default=8, min=1, max=SWEEP_K_MAX,
     )
     sweep_repetitions: IntProperty(
         name="Repetitions",
@@ -266,6 +206,14 @@ class BSPLabJobState(bpy.types.PropertyGroup):
         name="Progress", default=0.0, min=0.0, max=1.0, subtype='FACTOR',
     )
 
+
+def _add_option_properties():
+    """The build options' properties, added before the class is registered."""
+    for name in BUILD_OPTIONS:
+        BSPLabSettings.__annotations__[name] = option_property(OPTION_SCHEMA[name])
+
+
+_add_option_properties()
 
 classes = (
     BSPLabSettings,

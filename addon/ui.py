@@ -10,17 +10,8 @@ from . import backend, camera, operators, properties, stats
 HAS_PROGRESS_BAR = "progress" in bpy.types.UILayout.bl_rna.functions
 
 
-# The sidebar is narrow: shorter labels than the properties' names.
-SHORT_LABELS = {
-    "cluster_iterations": "Iterations",
-    "cluster_sample": "Sample",
-    "ize_candidates": "Candidates",
-    "traversal_cost": "Traversal",
-    "intersect_cost": "Intersection",
-    "empty_bonus": "Empty",
-    "general_cost": "General",
-    "max_duplication": "Duplication",
-}
+# The sidebar is narrow: the core's short labels instead of the properties' names.
+SHORT_LABELS = {name: spec["short_label"] for name, spec in properties.OPTION_SCHEMA.items()}
 
 
 class BSPLabPanel:
@@ -51,10 +42,7 @@ class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
             # Threads are drawn below with the render settings.
             if name not in params or name == "threads":
                 continue
-            if name in SHORT_LABELS:
-                col.prop(settings, name, text=SHORT_LABELS[name])
-            else:
-                col.prop(settings, name)
+            col.prop(settings, name, text=SHORT_LABELS[name])
 
         layout.separator()
         col = layout.column()
@@ -62,7 +50,8 @@ class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
         width, height = camera.preview_size(context.scene.render, settings.preview_percentage)
         col.label(text="{} x {} px".format(width, height))
         col.prop(settings, "render_mode")
-        col.prop(settings, "threads")
+        if "threads" in properties.BUILD_OPTIONS:  # not without the core
+            col.prop(settings, "threads")
         col.prop(settings, "cull")
         # Full width: the split layout would cut the checkbox's label short.
         row = layout.row()

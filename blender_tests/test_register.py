@@ -86,3 +86,62 @@ def test_reload_scripts(addon):
     assert bpy.types.BSPLAB_OT_build_render is addon.operators.BSPLAB_OT_build_render
     utils.reset_file()
     assert bpy.ops.bsplab.build_render.poll()
+
+
+def test_option_properties_follow_the_registry(addon, core):
+    """Every build option's property: name, help, default and limits from the
+    core's registry, not retyped in the add-on."""
+    schema = core.option_schema()
+    shown = [name for name in schema if name not in addon.properties.HIDDEN_OPTIONS]
+    assert sorted(addon.properties.BUILD_OPTIONS) == sorted(shown)
+    rna = addon.properties.BSPLabSettings.bl_rna.properties
+    for name in addon.properties.BUILD_OPTIONS:
+        spec, prop = schema[name], rna[name]
+        assert (prop.name, prop.description) == (spec["label"], spec["help"]), name
+        assert addon.ui.SHORT_LABELS[name] == spec["short_label"]
+        if spec["type"] == "enum":
+            assert prop.default == spec["default"]
+            assert [(i.identifier, i.name, i.description) for i in prop.enum_items] == \
+                [(c["name"], c["label"], c["help"]) for c in spec["choices"]]
+            continue
+        assert prop.default == pytest.approx(spec["default"]), name
+        if spec["min"] is not None:
+            step = addon.properties.OPEN_MIN_STEP if spec["min_open"] else 0
+            assert prop.hard_min == pytest.approx(spec["min"] + step), name
+        if spec["max"] is not None:
+            assert prop.hard_max == pytest.approx(min(spec["max"], 2**31 - 1)), name
+        if spec["soft_max"] is not None:
+            assert prop.soft_max == pytest.approx(spec["soft_max"]), name
+
+
+def test_method_defaults_fit_the_properties(addon, core):
+    """Choosing a method loads its own defaults (K differs between methods)."""
+    scene = utils.reset_file()
+    for method, info in core.methods().items():
+        scene.bsplab.method = method
+        for name, value in info["defaults"].items():
+            assert getattr(scene.bsplab, name) == pytest.approx(value), (method, name)
+
+
+def test_fallback_render_modes_are_the_cores(addon, core):
+    assert set(addon.backend.FALLBACK_RENDER_MODES) <= set(core.RENDER_MODES)
+
+
+def test_loads_without_core_with_no_build_options(addon, monkeypatch):
+    """Imported (not only registered) without the core: no option properties,
+    since their schema is the core's, and the panel still draws."""
+    import importlib
+    monkeypatch.setitem(sys.modules, "bsplab", None)
+    addon.unregister()
+    try:
+        importlib.reload(addon)
+        addon.register()
+        assert addon.properties.BUILD_OPTIONS == ()
+        scene = utils.reset_file()
+        assert scene.bsplab.method == "kd" and not hasattr(scene.bsplab, "k")
+    finally:
+        addon.unregister()
+        monkeypatch.undo()
+        importlib.reload(addon)
+        addon.register()  # the other tests need it registered with the core
+    assert "k" in addon.properties.BUILD_OPTIONS

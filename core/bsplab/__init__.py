@@ -4,10 +4,10 @@ structures. See docs/api.md for the API."""
 from . import _core
 from ._core import Cancelled, Progress
 from .camera import Camera
-from .method_table import methods
+from .method_table import methods, option_schema
 from .render import RENDER_MODES, render
 from .tree import Tree, build
 
 __version__ = "0.1.0"
 __all__ = ["Camera", "Cancelled", "Progress", "RENDER_MODES", "Tree", "build", "methods",
-           "render", "_core"]
+           "option_schema", "render", "_core"]

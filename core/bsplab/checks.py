@@ -68,58 +68,47 @@ def number(value, name: str, *, low=None, high=None, low_open=False, integer=Fal
 
 
 def build_options(method, options: dict) -> dict:
-    """The checked options of `method` (a method_table.Method), defaults filled in."""
-    from .method_table import BSP_OPTIONS, COMMON_OPTIONS, MAX_K
+    """The checked options of `method` (a method_table.Method), defaults
+    filled in, each against its schema in the core's registry."""
+    from .method_table import BSP_OPTIONS, COMMON_OPTIONS, OPTIONS
     allowed = method.params
     unknown = sorted(set(options) - set(allowed))
     if unknown:
         raise TypeError(f"unknown build option(s) {', '.join(unknown)} for method "
                         f"{method.name!r}; its options are {', '.join(allowed)}")
-    defaults = {**COMMON_OPTIONS, **BSP_OPTIONS, **method.defaults}
-    o = {**{k: defaults[k] for k in allowed}, **options}
-    out = {
-        "traversal_cost": number(o["traversal_cost"], "traversal_cost", low=0, low_open=True,
-                                 high=1e6),
-        "intersect_cost": number(o["intersect_cost"], "intersect_cost", low=0, low_open=True,
-                                 high=1e6),
-        "empty_bonus": number(o["empty_bonus"], "empty_bonus", low=0, high=0.99),
-        "max_depth": number(o["max_depth"], "max_depth", low=0, high=64, integer=True),
-        "leaf_size": number(o["leaf_size"], "leaf_size", low=1, high=1 << 20, integer=True),
-        "max_duplication": number(o["max_duplication"], "max_duplication", low=1, high=1000),
-        "memory_limit_mb": number(o["memory_limit_mb"], "memory_limit_mb", low=0, low_open=True),
-        "threads": threads(o["threads"]),
-        "leaf_boxes": choice(o["leaf_boxes"], "leaf_boxes", ("none", "triangle", "clipped")),
-    }
-    if "k" in allowed:
-        k = number(o["k"], "k", integer=True)
-        if k < method.min_k or k > MAX_K:
-            why = " (a '+' method counts the three axes among its K)" if method.plus_axes else ""
-            raise ValueError(f"k must be in {method.min_k}..{MAX_K} for {method.name}{why}, "
-                             f"got {k}")
-        out["k"] = k
-    if "seed" in allowed:
-        out["seed"] = number(o["seed"], "seed", low=0, high=2**63 - 1, integer=True)
-    if "alpha" in allowed:
-        out["alpha"] = number(o["alpha"], "alpha", low=0, high=1e3)
-    if "general_cost" in allowed:
-        out["general_cost"] = number(o["general_cost"], "general_cost", low=0, low_open=True,
-                                     high=1e6)
-    if "rbsp_set" in allowed:
-        kind = o["rbsp_set"]
-        if kind not in ("auto", "spiral", "dop"):
-            raise ValueError(f"rbsp_set must be 'auto', 'spiral' or 'dop', got {kind!r}")
-        if kind == "dop" and out["k"] not in (3, 7, 9, 13):
-            raise ValueError(f"the k-DOP direction sets have K = 3, 7, 9 or 13, got {out['k']}")
-        out["rbsp_set"] = kind
-    if "cluster_iterations" in allowed:
-        out["cluster_iterations"] = number(o["cluster_iterations"], "cluster_iterations", low=1,
-                                           high=500, integer=True)
-        out["cluster_sample"] = number(o["cluster_sample"], "cluster_sample", low=1,
-                                       high=1 << 24, integer=True)
-    if "ize_candidates" in allowed:
-        out["ize_candidates"] = number(o["ize_candidates"], "ize_candidates", low=1,
-                                       high=1 << 20, integer=True)
+    given = {**COMMON_OPTIONS, **BSP_OPTIONS, **method.defaults, **options}
+    out = {name: option(schema, given[name], method)
+           for name, schema in OPTIONS.items() if name in allowed}
+    for name in out:
+        _check_choice_k(OPTIONS[name], out)
     return out
+
+
+def option(schema: dict, value, method):
+    """One option's value checked against its schema (see method_table.OPTIONS)."""
+    name = schema["name"]
+    if schema["type"] == "enum":
+        return choice(value, name, tuple(c["name"] for c in schema["choices"]))
+    integer = schema["type"] == "int"
+    if not schema["per_method_limits"]:
+        return number(value, name, low=schema["min"], high=schema["max"],
+                      low_open=schema["min_open"], integer=integer)
+    # K: the method narrows the limits.
+    value = number(value, name, integer=integer)
+    low, high = method.min_k, schema["max"]
+    if value < low or value > high:
+        why = " (a '+' method counts the three axes among its K)" if method.plus_axes else ""
+        raise ValueError(f"{name} must be in {low}..{high} for {method.name}{why}, got {value}")
+    return value
+
+
+def _check_choice_k(schema: dict, out: dict) -> None:
+    """A choice that exists only for some K (the k-DOP sets) against the K chosen."""
+    for c in schema["choices"]:
+        if c["name"] == out[schema["name"]] and c["k_values"] and out.get("k") not in c["k_values"]:
+            sizes = ", ".join(map(str, c["k_values"][:-1])) + f" or {c['k_values'][-1]}"
+            raise ValueError(f"the {c['label']} direction sets have K = {sizes}, "
+                             f"got {out.get('k')}")
 
 
 def choice(value, name: str, allowed: tuple[str, ...]) -> str:
@@ -129,7 +118,8 @@ def choice(value, name: str, allowed: tuple[str, ...]) -> str:
 
 
 def threads(value) -> int:
-    return number(value, "threads", low=0, high=1024, integer=True)
+    from .method_table import OPTIONS
+    return option(OPTIONS["threads"], value, None)
 
 
 def rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:

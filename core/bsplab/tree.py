@@ -81,24 +81,10 @@ class Tree:
 
 
 def core_options(method, opts: dict):
-    """The checked options as the core's BuildOptions."""
-    o = _core.BuildOptions()
-    for name in ("traversal_cost", "intersect_cost", "empty_bonus", "max_depth", "leaf_size",
-                 "max_duplication", "memory_limit_mb", "threads", "k", "seed", "alpha",
-                 "general_cost", "cluster_iterations", "cluster_sample", "ize_candidates"):
-        if name in opts:
-            setattr(o, name, opts[name])
-    o.strategy = getattr(_core.Strategy, method.strategy)
-    o.plus_axes = method.plus_axes
-    o.kd_nodes = method.kd_nodes
-    o.leaf_boxes = getattr(_core.LeafBoxes, opts["leaf_boxes"])
-    if "rbsp_set" in opts:
-        # auto: the k-DOP set where one exists, else the axes + K - 3 spiral points.
-        kind = opts["rbsp_set"]
-        if kind == "auto":
-            kind = "dop" if opts["k"] in (3, 7, 9, 13) else "axes+spiral"
-        o.fixed_set = {"spiral": 0, "dop": 1, "axes+spiral": 2}[kind]
-    return o
+    """The checked options as the core's BuildOptions: the registry sets each
+    by name (rbsp_set's "auto" resolved there too), and the method's
+    strategy, plus_axes and kd_nodes."""
+    return _core.options_for(method.name, opts)
 
 
 def build(triangles, method: str = "kd", *, progress=None, **options) -> Tree:

@@ -5,6 +5,8 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/array.h>
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/variant.h>
 #include <nanobind/stl/vector.h>
 
 #include <cstring>
@@ -14,6 +16,7 @@
 #include "cell.hpp"
 #include "kd_build.hpp"
 #include "memory.hpp"
+#include "registry.hpp"
 #include "traverse.hpp"
 
 namespace nb = nanobind;
@@ -115,6 +118,75 @@ nb::dict stats(const bsp::Tree& tree) {
     return d;
 }
 
+// The registry (registry.hpp) as plain dicts and lists: what the Python
+// package generates its method table, option checks and the add-on's panel from.
+nb::object value(const bsp::OptionValue& v) {
+    return std::visit([](const auto& x) -> nb::object { return nb::cast(x); }, v);
+}
+
+nb::object optional_value(const std::optional<bsp::OptionValue>& v) {
+    return v ? value(*v) : nb::none();
+}
+
+nb::dict option_dict(const bsp::OptionSpec& o) {
+    static const char* types[] = {"float", "int", "enum"};
+    nb::dict d;
+    d["name"] = o.name;
+    d["type"] = types[int(o.type)];
+    d["group"] = o.group;
+    d["default"] = value(o.default_value);
+    d["min"] = optional_value(o.min);
+    d["max"] = optional_value(o.max);
+    d["min_open"] = o.min_open;
+    d["per_method_limits"] = o.per_method_limits;
+    d["soft_max"] = o.soft_max ? nb::cast(*o.soft_max) : nb::none();
+    nb::list choices;
+    for (const bsp::Choice& c : o.choices) {
+        nb::dict cd;
+        cd["name"] = c.name;
+        cd["label"] = c.label;
+        cd["help"] = c.help;
+        cd["k_values"] = c.k_values;
+        choices.append(cd);
+    }
+    d["choices"] = choices;
+    d["label"] = o.label;
+    d["short_label"] = o.short_label;
+    d["help"] = o.help;
+    d["field"] = o.field;
+    return d;
+}
+
+nb::dict method_dict(const bsp::MethodSpec& m) {
+    nb::dict d;
+    d["name"] = m.name;
+    d["label"] = m.label;
+    d["description"] = m.description;
+    d["builder"] = m.builder;
+    d["strategy"] = m.strategy;
+    d["plus_axes"] = m.plus_axes;
+    d["kd_nodes"] = m.kd_nodes;
+    d["options"] = m.options;
+    nb::dict defaults;
+    for (const auto& [name, v] : m.defaults) defaults[name.c_str()] = value(v);
+    d["defaults"] = defaults;
+    d["min_k"] = m.min_k();
+    d["max_k"] = m.max_k();
+    return d;
+}
+
+nb::dict registry() {
+    nb::dict d;
+    nb::list options, methods;
+    for (const bsp::OptionSpec& o : bsp::option_specs()) options.append(option_dict(o));
+    for (const bsp::MethodSpec& m : bsp::method_specs()) methods.append(method_dict(m));
+    d["options"] = options;
+    d["methods"] = methods;
+    d["strategies"] = bsp::strategy_names();
+    d["max_k"] = bsp::kMaxK;
+    return d;
+}
+
 nb::bytes node_bytes(const bsp::Tree& tree) {
     std::string out(reinterpret_cast<const char*>(tree.nodes.data()),
                     tree.nodes.size() * sizeof(bsp::Node));
@@ -146,14 +218,6 @@ NB_MODULE(_core, m) {
         .def("cancel", &bsp::Progress::cancel, "Ask the running work to stop.")
         .def("reset", &bsp::Progress::reset,
              "Ready for the next job: value back to 0 and any cancel cleared.");
-
-    nb::enum_<bsp::Strategy>(m, "Strategy")
-        .value("axes", bsp::Strategy::Axes)
-        .value("fixed", bsp::Strategy::Fixed)
-        .value("random", bsp::Strategy::Random)
-        .value("normals", bsp::Strategy::Normals)
-        .value("clustered", bsp::Strategy::Clustered)
-        .value("ize", bsp::Strategy::Ize);
 
     nb::enum_<bsp::LeafBoxes>(m, "LeafBoxes")
         .value("none", bsp::LeafBoxes::None)
@@ -241,6 +305,13 @@ NB_MODULE(_core, m) {
             return nb::make_tuple(c.area(), out);
         },
         "lo"_a, "hi"_a, "cuts"_a, "u"_a, "ts"_a, "Surface areas of cut cells (for tests).");
+    m.def("registry", &registry, "The methods, options and strategies of registry.hpp.");
+    m.def(
+        "options_for",
+        [](const std::string& method, const std::map<std::string, bsp::OptionValue>& values) {
+            return bsp::options_for(bsp::method_spec(method), values);
+        },
+        "method"_a, "values"_a, "The method's BuildOptions with `values` set by option name.");
     m.def("build", &build, "triangles"_a, "builder"_a, "options"_a, "progress"_a.none());
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a, "general_steps"_a, "tests"_a, "culled"_a,

@@ -14,6 +14,7 @@
 #include "cell.hpp"
 #include "directions.hpp"
 #include "parallel.hpp"
+#include "registry.hpp"
 
 namespace bsp {
 namespace {
@@ -66,9 +67,7 @@ public:
         // both sides. Axis planes are exact (the crossing is monotonic in the
         // plane position), as in the kd-tree, and need no fattening.
         eps_ = robust_epsilon(tris);
-        if (opt.strategy == Strategy::Fixed) {
-            fixed_ = fixed_directions(opt.fixed_set, opt.k);
-        }
+        strategy_ = make_strategy(opt);
     }
 
     // `credit`: the memory budget of the build task (thread) running this node.
@@ -85,7 +84,7 @@ public:
         // ids, the sweeps' position arrays (per thread), BSP_IZE's reference BVH.
         Charge scratch(credit,
                        uint64_t(n) * (sizeof(uint32_t) + 3 * sizeof(float) * uint64_t(threads_) +
-                                      (opt_.strategy == Strategy::Ize ? kIzeBytesPerRef : 0)),
+                                      (strategy_->tries_triangle_planes() ? kIzeBytesPerRef : 0)),
                        depth, "a node's sweep buffers");
         Rng rng(Rng::mix(opt_.seed, id));
         std::vector<Vec3> dirs;
@@ -93,7 +92,7 @@ public:
             // Freed before the children are built: recursion would hold it per level.
             std::vector<uint32_t> tri_ids(n);
             for (size_t i = 0; i < n; ++i) tri_ids[i] = refs.refs[i].tri;
-            node_directions(opt_, fixed_, tris_, tri_ids.data(), n, rng, dirs);
+            node_directions(*strategy_, opt_, tris_, tri_ids.data(), n, rng, dirs);
         }
 
         SweepResult total;
@@ -104,7 +103,7 @@ public:
         if (threads_ > 1 && n > 8192) parallel_for(dirs.size(), 1, threads_, sweep_range);
         else sweep_range(0, dirs.size());
         for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
-        if (opt_.strategy == Strategy::Ize) merge(total, ize_planes(refs, cell, area, rng));
+        if (strategy_->tries_triangle_planes()) merge(total, ize_planes(refs, cell, area, rng));
 
         const float leaf_cost = opt_.intersect_cost * float(n);
         Candidate s = total.best;
@@ -183,7 +182,7 @@ private:
     int threads_;
     int spawn_depth_;
     MemoryBudget& memory_;
-    std::vector<Vec3> fixed_;
+    std::unique_ptr<DirectionStrategy> strategy_;
     float eps_ = 0;  // the fattening of extents along non-axis directions
 
     const Vec3* verts(const NodeRefs& nr, const Ref& r, uint32_t& count) const {

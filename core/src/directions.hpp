@@ -1,6 +1,8 @@
-// Direction strategies of the BSP_SWEEP family: which K plane normals a node
-// sweeps. All randomness comes from a per-node generator seeded by the build
-// seed and the node's position in the tree, so trees never depend on threads.
+// Shared helpers of the direction strategies (strategies/*.cpp): the random
+// generator, canonical directions, triangle normals, sampling, and the step
+// every node takes (node_directions). All randomness comes from a per-node
+// generator seeded by the build seed and the node's position in the tree, so
+// trees never depend on threads.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -34,16 +36,15 @@ Vec3 canonical(Vec3 d);
 bool is_axis(const Vec3& d, int& axis);
 Vec3 unit_normal(const Triangle& t);
 
-// The fixed RBSP sets: golden-spiral points on the hemisphere for any K, or
-// the k-DOP directions with coordinates in {-1, 0, 1} for K = 3, 7, 9, 13.
-std::vector<Vec3> spiral_directions(int k);
-std::vector<Vec3> dop_directions(int k);  // empty when K is not 3, 7, 9 or 13
-// BuildOptions::fixed_set: 0 the spiral, 1 the k-DOP set, 2 the three axes
-// plus K - 3 spiral points (so that RBSP^Kd has kd nodes for any K >= 3).
-std::vector<Vec3> fixed_directions(int set, int k);
+// Up to `m` distinct positions of [0, n), drawn uniformly without replacement.
+std::vector<uint32_t> draw(size_t n, size_t m, Rng& rng);
 
-// The directions a node sweeps. `tris` are the node's triangle indices.
-void node_directions(const BuildOptions& opt, const std::vector<Vec3>& fixed,
+class DirectionStrategy;
+
+// The directions a node sweeps: the three axes first for "+" methods
+// (opt.plus_axes, which count them among opt.k), then the strategy's, with
+// duplicates removed. `tris` are the node's triangle indices.
+void node_directions(const DirectionStrategy& strategy, const BuildOptions& opt,
                      const std::vector<Triangle>& triangles, const uint32_t* tris, size_t n,
                      Rng& rng, std::vector<Vec3>& out);
 

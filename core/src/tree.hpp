@@ -61,16 +61,6 @@ struct Plane {
 
 constexpr uint32_t kMaxNodes = (1u << 29) - 1;
 
-// How the builder picks candidate directions at a node (the BSP family).
-enum class Strategy : int {
-    Axes = 0,     // the three axes (kd)
-    Fixed,        // RBSP: one fixed set of K directions for the whole tree
-    Random,       // BSP_random(+): fresh random directions per node
-    Normals,      // BSP_wn(+): normals of random triangles of the node
-    Clustered,    // BSP_cn(+): k-means of the node's normals
-    Ize,          // BSP_IZE: kd planes + each triangle's plane and edge planes
-};
-
 enum class LeafBoxes : int {
     None = 0,      // no culling possible
     Triangle = 1,  // each triangle's own box: 24 bytes per triangle
@@ -87,7 +77,9 @@ struct BuildOptions {
     double memory_limit_mb = 4096.0;
     int threads = 0;
     // The BSP family (ignored by the kd builder).
-    Strategy strategy = Strategy::Axes;
+    // How the builder picks candidate directions at a node: a name in
+    // strategy_names() (registry.hpp), each in its own strategies/*.cpp.
+    std::string strategy = "axes";
     int k = 3;                     // directions per node, the axes included for "+" methods
     bool plus_axes = false;        // "+": the three axes are among the K
     bool kd_nodes = false;         // ^Kd: axis splits become cheap kd nodes

@@ -1,0 +1,310 @@
+#include "registry.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <stdexcept>
+#include <type_traits>
+
+namespace bsp {
+
+// ---- The direction strategies ----------------------------------------------
+//
+// Each lives in strategies/<name>.cpp. They are listed here rather than
+// registering themselves from static initialisers: the linker drops object
+// files of a static library that nothing references, and with them such
+// self-registration.
+
+std::unique_ptr<DirectionStrategy> make_axes_strategy(const BuildOptions&);
+std::unique_ptr<DirectionStrategy> make_fixed_strategy(const BuildOptions&);
+std::unique_ptr<DirectionStrategy> make_random_strategy(const BuildOptions&);
+std::unique_ptr<DirectionStrategy> make_normals_strategy(const BuildOptions&);
+std::unique_ptr<DirectionStrategy> make_clustered_strategy(const BuildOptions&);
+std::unique_ptr<DirectionStrategy> make_ize_strategy(const BuildOptions&);
+
+namespace {
+
+struct StrategyEntry {
+    const char* name;
+    StrategyFactory make;
+};
+
+const StrategyEntry kStrategies[] = {
+    {"axes", make_axes_strategy},          // kd: the three axes
+    {"fixed", make_fixed_strategy},        // RBSP: one fixed set for the whole tree
+    {"random", make_random_strategy},      // BSP_random(+): fresh random directions per node
+    {"normals", make_normals_strategy},    // BSP_wn(+): normals of random triangles of the node
+    {"clustered", make_clustered_strategy},// BSP_cn(+): k-means of the node's normals
+    {"ize", make_ize_strategy},            // BSP_IZE: kd planes + each triangle's own planes
+};
+
+// ---- Setting BuildOptions fields from OptionValues -------------------------
+
+// The messages here complete "option NAME ..." (options_for() adds the name).
+template <class T>
+T as_number(const OptionValue& v) {
+    if (const int64_t* i = std::get_if<int64_t>(&v)) return T(*i);
+    if (const double* d = std::get_if<double>(&v)) {
+        // A real number for a whole-number field would be truncated silently.
+        if (std::is_integral_v<T> && *d != double(T(*d)))
+            throw std::invalid_argument("takes a whole number");
+        return T(*d);
+    }
+    throw std::invalid_argument("takes a number, not a string");
+}
+
+const std::string& as_string(const OptionValue& v) {
+    if (const std::string* s = std::get_if<std::string>(&v)) return *s;
+    throw std::invalid_argument("takes a string");
+}
+
+// The setter of a plain numeric field, by member pointer.
+template <auto Field>
+void set_field(BuildOptions& o, const OptionValue& v) {
+    using T = std::remove_reference_t<decltype(o.*Field)>;
+    o.*Field = as_number<T>(v);
+}
+
+void set_leaf_boxes(BuildOptions& o, const OptionValue& v) {
+    const std::string& s = as_string(v);
+    if (s == "none") o.leaf_boxes = LeafBoxes::None;
+    else if (s == "triangle") o.leaf_boxes = LeafBoxes::Triangle;
+    else if (s == "clipped") o.leaf_boxes = LeafBoxes::Clipped;
+    else throw std::invalid_argument("must be none, triangle or clipped, got " + s);
+}
+
+const std::vector<int> kDopSizes = {3, 7, 9, 13};
+
+// RBSP's set; "auto" takes the k-DOP set where one exists for K, else the
+// three axes plus K - 3 spiral points. Needs K set first (option order).
+void set_rbsp_set(BuildOptions& o, const OptionValue& v) {
+    std::string s = as_string(v);
+    if (s == "auto")
+        s = std::count(kDopSizes.begin(), kDopSizes.end(), o.k) ? "dop" : "axes+spiral";
+    if (s == "spiral") o.fixed_set = 0;
+    else if (s == "dop") o.fixed_set = 1;
+    else if (s == "axes+spiral") o.fixed_set = 2;
+    else throw std::invalid_argument("must be auto, spiral or dop, got " + s);
+}
+
+// The name, field and setter of an option that sets the numeric field of its name.
+#define NUMBER_FIELD(f) .name = #f, .field = #f, .apply = set_field<&BuildOptions::f>
+
+OptionValue whole(int64_t v) { return OptionValue(v); }
+OptionValue real(double v) { return OptionValue(v); }
+
+std::vector<OptionSpec> make_option_specs() {
+    using T = OptionType;
+    // Limits are written as today's checks wrote them (whole or real), so
+    // their messages print them the same way.
+    return {
+        {NUMBER_FIELD(traversal_cost), .type = T::Float, .group = "common",
+         .default_value = real(1.0), .min = whole(0), .max = real(1e6), .min_open = true,
+         .soft_max = 10.0, .label = "Traversal Cost", .short_label = "Traversal",
+         .help = "SAH cost of visiting one interior node (K_d; every step without ^Kd)"},
+        {NUMBER_FIELD(intersect_cost), .type = T::Float, .group = "common",
+         .default_value = real(1.5), .min = whole(0), .max = real(1e6), .min_open = true,
+         .soft_max = 10.0, .label = "Intersection Cost", .short_label = "Intersection",
+         .help = "SAH cost of one ray-triangle test (K_i)"},
+        {NUMBER_FIELD(empty_bonus), .type = T::Float, .group = "common", .default_value = real(0.2),
+         .min = whole(0), .max = real(0.99), .label = "Empty Bonus", .short_label = "Empty",
+         .help = "SAH discount for splits that cut off empty space"},
+        {NUMBER_FIELD(max_depth), .type = T::Int, .group = "common", .default_value = whole(0),
+         .min = whole(0), .max = whole(64), .label = "Max Depth", .short_label = "Max Depth",
+         .help = "Maximum tree depth (0: automatic, 8 + 1.3 log2 N)"},
+        {NUMBER_FIELD(leaf_size), .type = T::Int, .group = "common", .default_value = whole(1),
+         .min = whole(1), .max = whole(1 << 20), .soft_max = 64, .label = "Leaf Size",
+         .short_label = "Leaf Size",
+         .help = "Stop splitting nodes with at most this many triangles"},
+        {NUMBER_FIELD(max_duplication), .type = T::Float, .group = "common",
+         .default_value = real(8.0), .min = whole(1), .max = whole(1000), .soft_max = 32.0,
+         .label = "Max Duplication", .short_label = "Duplication",
+         .help = "Stop splitting when triangle references exceed this multiple of the triangles"},
+        {NUMBER_FIELD(memory_limit_mb), .type = T::Float, .group = "common",
+         .default_value = real(4096.0), .min = whole(0), .min_open = true,
+         .label = "Memory Limit (MB)", .short_label = "Memory",
+         .help = "The build stops with a MemoryError beyond this many megabytes"},
+        {NUMBER_FIELD(threads), .type = T::Int, .group = "common", .default_value = whole(0),
+         .min = whole(0), .max = whole(1024), .soft_max = 64, .label = "Threads",
+         .short_label = "Threads", .help = "Worker threads of the core (0: all cores)"},
+        {.name = "leaf_boxes", .field = "leaf_boxes", .apply = set_leaf_boxes,
+         .type = T::Enum, .group = "common",
+         .default_value = OptionValue("triangle"),
+         .choices = {{"none", "None", "No boxes: leaf culling is not possible", {}},
+                     {"triangle", "Triangle",
+                      "Each triangle's own box (24 bytes per triangle)", {}},
+                     {"clipped", "Clipped",
+                      "Each reference's box clipped to its leaf cell (24 bytes per reference; "
+                      "culls more)", {}}},
+         .label = "Leaf Boxes", .short_label = "Leaf Boxes",
+         .help = "Boxes kept for leaf culling with the ray segment's box"},
+        // The BSP family. K's limits here are the widest; a method narrows
+        // them (MethodSpec::min_k, max_k).
+        {NUMBER_FIELD(k), .type = T::Int, .group = "bsp", .default_value = whole(6),
+         .min = whole(1), .max = whole(kMaxK), .per_method_limits = true, .label = "K",
+         .short_label = "K", .help = "Number of split directions tried per node"},
+        {NUMBER_FIELD(seed), .type = T::Int, .group = "bsp", .default_value = whole(1),
+         .min = whole(0), .max = whole(INT64_MAX),
+         .label = "Seed", .short_label = "Seed",
+         .help = "Seed of the random choices of randomised methods"},
+        // The ^Kd costs: Ize et al. (2008) price a general node at
+        // alpha * K_i * (n - 1) + K_d with alpha = 0.1, and fall back to a
+        // constant K_d,BSP; general_cost = 2 K_d reflects that a general
+        // step (two dot products and a division) costs about twice a kd step
+        // (one subtraction and one multiplication) in our traversal.
+        {NUMBER_FIELD(alpha), .type = T::Float, .group = "bsp", .default_value = real(0.1),
+         .min = whole(0), .max = real(1e3), .soft_max = 1.0, .label = "Alpha",
+         .short_label = "Alpha",
+         .help = "Per-triangle factor of a general (non-axis) node's traversal cost"},
+        {NUMBER_FIELD(general_cost), .type = T::Float, .group = "bsp", .default_value = real(2.0),
+         .min = whole(0), .max = real(1e6), .min_open = true, .soft_max = 10.0,
+         .label = "General Cost", .short_label = "General",
+         .help = "Traversal cost of a general (non-axis) node"},
+        {.name = "rbsp_set", .field = "fixed_set", .apply = set_rbsp_set,
+         .type = T::Enum, .group = "bsp", .default_value = OptionValue("auto"),
+         .choices = {{"auto", "Auto",
+                      "k-DOP directions for K = 3, 7, 9, 13, else the axes plus a golden spiral",
+                      {}},
+                     {"spiral", "Spiral", "K directions on a golden spiral", {}},
+                     {"dop", "k-DOP", "The k-DOP directions (K = 3, 7, 9 or 13)", kDopSizes}},
+         .label = "Directions", .short_label = "Directions",
+         .help = "The fixed direction set of RBSP"},
+        {NUMBER_FIELD(cluster_iterations), .type = T::Int, .group = "bsp",
+         .default_value = whole(16), .min = whole(1), .max = whole(500),
+         .label = "Cluster Iterations", .short_label = "Iterations",
+         .help = "k-means iterations for clustering the node's normals"},
+        {NUMBER_FIELD(cluster_sample), .type = T::Int, .group = "bsp", .default_value = whole(1024),
+         .min = whole(1), .max = whole(1 << 24), .soft_max = 65536, .label = "Cluster Sample",
+         .short_label = "Sample", .help = "Normals sampled per node for the clustering"},
+        {NUMBER_FIELD(ize_candidates), .type = T::Int, .group = "bsp", .default_value = whole(64),
+         .min = whole(1), .max = whole(1 << 20), .soft_max = 4096, .label = "IZE Candidates",
+         .short_label = "Candidates",
+         .help = "Triangles whose own and edge planes are tried per node at most"},
+    };
+}
+
+#undef NUMBER_FIELD
+
+// ---- The methods -------------------------------------------------------------
+
+using Options = std::vector<std::string>;
+const Options kSweep = {"k", "seed"};
+const Options kKdCosts = {"alpha", "general_cost"};
+
+Options operator+(Options a, const Options& b) {
+    a.insert(a.end(), b.begin(), b.end());
+    return a;
+}
+
+std::string lower(std::string s) {
+    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
+
+// A direction strategy as plain, "+" (axes included) and "+kd" (^Kd) methods.
+void add_family(std::vector<MethodSpec>& out, const std::string& base, const std::string& label,
+                const std::string& what, const std::string& strategy, const Options& options,
+                int64_t k_default) {
+    const std::vector<std::pair<std::string, OptionValue>> k = {{"k", whole(k_default)}};
+    out.push_back(
+        {base, label, what + " at every node.", "bsp", strategy, false, false, options, k});
+    out.push_back({base + "+", label + "+", "The three axes plus " + lower(what) + ".", "bsp",
+                   strategy, true, false, options, k});
+    out.push_back({base + "+kd", label + "+ ^Kd",
+                   "The three axes plus " + lower(what) + "; axis splits are fast kd nodes.", "bsp",
+                   strategy, true, true, options + kKdCosts, k});
+}
+
+std::vector<MethodSpec> make_method_specs() {
+    std::vector<MethodSpec> m;
+    m.push_back({"kd", "kd (SAH)",
+                 "Axis-aligned kd-tree, SAH with perfect splits, O(N log N) build "
+                 "(Wald & Havran 2006).",
+                 "kd"});
+    m.push_back({"rbsp", "RBSP",
+                 "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
+                 "else the three axes plus K - 3 golden-spiral points) at every node.",
+                 "bsp", "fixed", false, false, kSweep + Options{"rbsp_set"}, {{"k", whole(13)}}});
+    m.push_back({"rbsp+kd", "RBSP ^Kd", "RBSP whose axis splits are fast kd nodes.", "bsp",
+                 "fixed", false, true, kSweep + Options{"rbsp_set"} + kKdCosts,
+                 {{"k", whole(13)}}});
+    add_family(m, "bsp_random", "BSP random", "K random directions, fresh", "random", kSweep, 10);
+    add_family(m, "bsp_wn", "BSP wn", "The normals of K random triangles of the node", "normals",
+               kSweep, 6);
+    add_family(m, "bsp_cn", "BSP cn",
+               "K cluster centres (antipodal spherical k-means) of the node's normals",
+               "clustered", kSweep + Options{"cluster_iterations", "cluster_sample"}, 6);
+    m.push_back({"bsp_ize", "BSP IZE",
+                 "kd planes plus every triangle's own plane and its three edge planes "
+                 "(Ize, Wald & Parker 2008).",
+                 "bsp", "ize", true, false, {"seed", "ize_candidates"}});
+    m.push_back({"bsp_ize+kd", "BSP IZE ^Kd", "BSP_IZE whose axis splits are fast kd nodes.", "bsp",
+                 "ize", true, true, Options{"seed", "ize_candidates"} + kKdCosts});
+    return m;
+}
+
+template <class Spec>
+const Spec& find_by_name(const std::vector<Spec>& specs, const std::string& name,
+                         const char* what) {
+    for (const Spec& s : specs)
+        if (s.name == name) return s;
+    std::string known;
+    for (const Spec& s : specs) known += (known.empty() ? "" : ", ") + s.name;
+    throw std::invalid_argument("unknown " + std::string(what) + " " + name + "; known: " + known);
+}
+
+}  // namespace
+
+const std::vector<OptionSpec>& option_specs() {
+    static const std::vector<OptionSpec> specs = make_option_specs();
+    return specs;
+}
+
+const std::vector<MethodSpec>& method_specs() {
+    static const std::vector<MethodSpec> specs = make_method_specs();
+    return specs;
+}
+
+const OptionSpec& option_spec(const std::string& name) {
+    return find_by_name(option_specs(), name, "option");
+}
+
+const MethodSpec& method_spec(const std::string& name) {
+    return find_by_name(method_specs(), name, "method");
+}
+
+std::vector<std::string> strategy_names() {
+    std::vector<std::string> out;
+    for (const StrategyEntry& s : kStrategies) out.push_back(s.name);
+    return out;
+}
+
+std::unique_ptr<DirectionStrategy> make_strategy(const BuildOptions& options) {
+    for (const StrategyEntry& s : kStrategies)
+        if (options.strategy == s.name) return s.make(options);
+    std::string known;
+    for (const std::string& n : strategy_names()) known += (known.empty() ? "" : ", ") + n;
+    throw std::invalid_argument("unknown direction strategy " + options.strategy + "; known: " +
+                                known);
+}
+
+BuildOptions options_for(const MethodSpec& method,
+                         const std::map<std::string, OptionValue>& values) {
+    BuildOptions o;
+    o.strategy = method.strategy;
+    o.plus_axes = method.plus_axes;
+    o.kd_nodes = method.kd_nodes;
+    for (const auto& [name, value] : values) option_spec(name);  // unknown names fail here
+    // In the specs' order: K before rbsp_set, which depends on it.
+    for (const OptionSpec& spec : option_specs()) {
+        const auto it = values.find(spec.name);
+        if (it == values.end()) continue;
+        try {
+            spec.apply(o, it->second);
+        } catch (const std::invalid_argument& e) {
+            throw std::invalid_argument("option " + spec.name + " " + e.what());
+        }
+    }
+    return o;
+}
+
+}  // namespace bsp
