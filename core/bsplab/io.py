@@ -1,5 +1,10 @@
-"""Triangle mesh files: PLY (binary and ASCII) and Wavefront OBJ.
+"""Triangle mesh files: PLY (binary and ASCII) and Wavefront OBJ read here;
+glTF/GLB, STL and OFF read through trimesh (trimesh_io.py); PLY written here.
 
+PLY and OBJ keep these readers rather than trimesh's because they are stricter:
+trimesh 5 reads some broken files without a word (an OBJ index 0 as the last
+vertex, a truncated ASCII PLY as fewer faces, a fractional list count) and
+refuses some valid ones (a binary PLY face with properties beside its list).
 Readers return `(vertices float32 (V,3), faces int32 (F,3))` with polygons
 fan-triangulated in file order, so triangle numbers are reproducible across
 tools. Binary PLY whose faces all have the same size (the common case) is read
@@ -25,6 +30,10 @@ _PLY_TYPES = {
 }
 _PLY_FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 _FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
+
+# Every extension read_mesh reads: PLY and OBJ here, the rest through trimesh
+# (trimesh_io.FORMATS).
+MESH_FORMATS = ("ply", "obj", "glb", "gltf", "stl", "off")
 
 
 # -- PLY header ------------------------------------------------------------------
@@ -337,7 +346,8 @@ def _checked_vertices(v: np.ndarray, name: str, where) -> np.ndarray:
 def _read_bytes(path: PathLike) -> bytes:
     p = Path(path)
     if p.is_dir():
-        raise ValueError(f"{path}: is a directory, not a mesh file (.ply or .obj)")
+        raise ValueError(f"{path}: is a directory, not a mesh file "
+                         f"({_suffixes(MESH_FORMATS)})")
     if not p.exists():
         raise FileNotFoundError(f"{path}: no such file")
     return p.read_bytes()
@@ -495,20 +505,37 @@ def read_obj(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     return vertices, fan_triangulate(counts_a, flat, name).astype(np.int32).reshape(-1, 3)
 
 
+def _suffixes(formats) -> str:
+    return ", ".join("." + f for f in formats)
+
+
 def read_mesh(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """`(vertices, faces)` of a `.ply` or `.obj` file, chosen by extension."""
+    """`(vertices, faces)` of a mesh file, its type chosen by extension:
+    `.ply` and `.obj` by the readers above, `.glb`, `.gltf`, `.stl` and `.off`
+    by trimesh (a glTF scene flattened to world space). The same checks apply
+    to all: finite float32 coordinates, indices that name a vertex."""
+    from . import trimesh_io
+
     if Path(path).is_dir():
-        raise ValueError(f"{path}: is a directory, not a mesh file (.ply or .obj)")
+        raise ValueError(f"{path}: is a directory, not a mesh file "
+                         f"({_suffixes(MESH_FORMATS)})")
     suffix = Path(path).suffix.lower()
     if suffix == ".ply":
         return read_ply(path)
     if suffix == ".obj":
         return read_obj(path)
-    raise ValueError(f"{path}: unsupported mesh format {suffix!r} (expected .ply or .obj)")
+    if suffix[1:] not in trimesh_io.FORMATS:
+        raise ValueError(f"{path}: unsupported mesh format {suffix!r} (expected one of "
+                         f"{_suffixes(MESH_FORMATS)})")
+    if not Path(path).exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    vertices, faces = trimesh_io.read(Path(path), suffix[1:])
+    vertices = _checked_vertices(vertices, str(path), lambda i: f"vertex {i}")
+    return vertices, _check_indices(faces, len(vertices), str(path))
 
 
 def load_mesh(path: PathLike) -> np.ndarray:
-    """Triangles `(N,3,3)` float32 of a `.ply` or `.obj` file; a file
+    """Triangles `(N,3,3)` float32 of a mesh file (see read_mesh); a file
     without faces is a ValueError."""
     vertices, faces = read_mesh(path)
     if len(faces) == 0:
