@@ -571,30 +571,18 @@ def write_ply(path: PathLike, vertices: np.ndarray, faces: np.ndarray) -> None:
         out.write(records.tobytes())
 
 
-def _export_script() -> Path:
-    """The add-on's export_scene.py: beside the checkout the package was
-    installed from (its .venv lives in it), or under $BSPLAB_ADDON_DIR."""
-    env = os.environ.get("BSPLAB_ADDON_DIR")
-    candidates = [Path(env)] if env else []
-    candidates += [p / "addon" for p in Path(__file__).resolve().parents]
-    candidates += [Path.cwd() / "addon"]
-    for c in candidates:
-        if (c / "export_scene.py").is_file():
-            return c / "export_scene.py"
-    raise FileNotFoundError("reading a .blend needs the BSP Lab add-on's export_scene.py: "
-                            "set BSPLAB_ADDON_DIR to the checkout's addon folder")
-
-
 def load_blend(path: PathLike, blender: str | None = None, timeout: float = 600.0):
     """Triangles `(N,3,3)` float32 and the scene camera (a `Camera`, or None
     when the scene has none) of a .blend's evaluated scene, exactly as the
     add-on extracts them. Runs Blender: `blender` or $BSPLAB_BLENDER names a
     Blender executable (default `blender` on the PATH) or a Python with the
-    `bpy` module."""
+    `bpy` module. The script Blender runs ships inside this package
+    (bsplab/blender/export_scene.py), so a wheel install reads .blend files too."""
     import shutil
     import subprocess
     import tempfile
 
+    from .blender import EXPORT_SCRIPT
     from .camera import Camera
 
     path = Path(path)
@@ -607,7 +595,7 @@ def load_blend(path: PathLike, blender: str | None = None, timeout: float = 600.
         raise FileNotFoundError(f"reading {path.name} needs Blender: {exe!r} is not an "
                                 "executable (set BSPLAB_BLENDER to a Blender or a Python "
                                 "with the bpy module)")
-    script = _export_script()
+    script = EXPORT_SCRIPT
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "scene.npz"
         if Path(exe).name.startswith("python"):

@@ -20,6 +20,7 @@ import pytest
 
 import bsplab
 from bsplab import scenes
+from bsplab.blender.camera import CameraSpec
 
 ADDON_DIR = Path(__file__).resolve().parents[2] / "addon"
 PACKAGE = "bsplab_addon_without_blender"
@@ -35,13 +36,12 @@ def _addon_module(name):
 
 
 jobs = _addon_module("jobs")
-addon_camera = _addon_module("camera")
 
 
 def _spec(camera: bsplab.Camera, width: int, height: int):
-    """The add-on's CameraSpec (what it reads from the scene camera) of a core camera."""
+    """The CameraSpec the add-on reads from a scene camera, of a core camera."""
     fields = {f.name: getattr(camera, f.name) for f in dataclasses.fields(bsplab.Camera)}
-    return addon_camera.CameraSpec(width=width, height=height, name="TestCam", **fields)
+    return CameraSpec(width=width, height=height, name="TestCam", **fields)
 
 
 def _input(triangles, camera, *, width=48, height=32, **changes):
@@ -162,3 +162,17 @@ def test_plain_makes_results_json_friendly():
     out = jobs.plain(value)
     assert out == {"1": 0.5, "a": [0, 1, 2], "big": "array(100,)", "t": [2]}
     json.dumps(out)
+
+
+def test_the_addon_reads_the_scene_with_the_core_packages_modules():
+    """addon/camera.py and addon/extract.py hold no copy of the scene reading:
+    their names are bsplab.blender's (bpy-free to import)."""
+    from bsplab.blender import camera, extract
+    addon_camera, addon_extract = _addon_module("camera"), _addon_module("extract")
+    assert addon_camera.CameraSpec is camera.CameraSpec
+    assert addon_camera.scene_camera is camera.scene_camera
+    assert addon_extract.scene_triangles is extract.scene_triangles
+    render = types.SimpleNamespace(resolution_x=1920, resolution_y=1080,
+                                   resolution_percentage=50)
+    for percent in (1, 25, 100):
+        assert addon_camera.preview_size(render, percent) == camera.preview_size(render, percent)
