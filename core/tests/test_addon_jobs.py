@@ -113,7 +113,7 @@ def test_cancel_mid_way_ends_the_job_cancelled():
     built = threading.Event()
 
     def cancel_after_build():
-        while job.build_progress.value < 1.0 and job.error is None:
+        while job.is_alive() and job.build_progress.value < 1.0:
             threading.Event().wait(0.001)
         built.set()
         job.cancel()
@@ -124,7 +124,7 @@ def test_cancel_mid_way_ends_the_job_cancelled():
     job.join(60.0)
     canceller.join(60.0)
     assert built.is_set() and not job.is_alive(), "the job did not stop after cancel()"
-    assert job.result is None
+    assert job.result is None and job.render_progress.value < 1.0  # the render was cut short
     assert isinstance(job.error, bsplab.Cancelled), job.error
     assert "cancelled" in jobs.error_message(bsplab, job.error)
 
