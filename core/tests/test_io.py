@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from bsplab import io
+from bsplab.formats import ply
 
 REPO = Path(__file__).resolve().parents[2]
 SHARED = REPO.parent / "shared" / "scenes"
@@ -59,7 +60,7 @@ def test_binary_ply_mixed_types_and_polygons(tmp_path, order):
 def test_binary_ply_all_quads_uses_fixed_layout(tmp_path, monkeypatch):
     path = tmp_path / "quads.ply"
     path.write_bytes(_binary_ply(polys=[[0, 1, 2, 3], [1, 2, 4, 3]]))
-    monkeypatch.setattr(io, "_read_binary_variable", _fail)
+    monkeypatch.setattr(ply, "_read_binary_variable", _fail)
     _, f = io.read_ply(path)
     np.testing.assert_array_equal(f, [[0, 1, 2], [0, 2, 3], [1, 2, 4], [1, 4, 3]])
 

@@ -4,7 +4,7 @@ A glTF/GLB file is a scene: a graph of nodes, each placing a mesh with its
 transform (one mesh may be placed many times). The trees want one list of
 world-space triangles, so the scene is flattened here. trimesh is imported on
 the first read, so `import bsplab` (inside Blender, say) does without it.
-PLY and OBJ keep bsplab's own stricter readers (see io.py).
+PLY and OBJ keep bsplab's own stricter readers (ply.py, obj.py say why).
 """
 
 from __future__ import annotations
