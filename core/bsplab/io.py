@@ -26,7 +26,7 @@ __all__ = ["MESH_FORMATS", "fan_triangulate", "load_blend", "load_mesh", "read_m
 
 def read_mesh(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     """`(vertices, faces)` of a mesh file, its type chosen by extension:
-    `.ply` and `.obj` by the readers above, `.glb`, `.gltf`, `.stl` and `.off`
+    `.ply` and `.obj` by bsplab's own readers (formats/), `.glb`, `.gltf`, `.stl`, `.off`
     by trimesh (a glTF scene flattened to world space). The same checks apply
     to all: finite float32 coordinates, indices that name a vertex."""
     from .formats import via_trimesh
