@@ -40,7 +40,10 @@ def blender_module(name):
     """The core package's `bsplab.blender.<name>` module (scene reading shared
     with `bsplab.io.load_blend`); raise CoreMissing without the core."""
     import_core()
-    return importlib.import_module("{}.blender.{}".format(CORE_MODULE, name))
+    try:
+        return importlib.import_module("{}.blender.{}".format(CORE_MODULE, name))
+    except ImportError as ex:  # a core older than bsplab.blender
+        raise CoreMissing(MISSING_MESSAGE.format(ex)) from ex
 
 
 def core_or_none():
