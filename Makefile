@@ -7,7 +7,8 @@ BIN    := $(VENV)/bin
 # numpy < 2 matches the numpy that Blender 4.2-5.0 ship, so the core is tested
 # against what the add-on meets.
 DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4" \
-          "matplotlib>=3.7" "dask[distributed]>=2024.1" "hypothesis>=6.100"
+          "matplotlib>=3.7" "dask[distributed]>=2024.1" "hypothesis>=6.100" \
+          "trimesh>=4" "pillow>=9"
 
 .PHONY: all venv core demo demo-core test test-core test-sanitize test-tsan test-blender bench bench-family bench-cull results results-quick addon scenes clean
 

@@ -36,6 +36,16 @@ def import_core():
         raise CoreMissing(MISSING_MESSAGE.format(ex)) from ex
 
 
+def blender_module(name):
+    """The core package's `bsplab.blender.<name>` module (scene reading shared
+    with `bsplab.io.load_blend`); raise CoreMissing without the core."""
+    import_core()
+    try:
+        return importlib.import_module("{}.blender.{}".format(CORE_MODULE, name))
+    except ImportError as ex:  # a core older than bsplab.blender
+        raise CoreMissing(MISSING_MESSAGE.format(ex)) from ex
+
+
 def core_or_none():
     try:
         return import_core()

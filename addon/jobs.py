@@ -1,15 +1,32 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""A job that runs on a worker thread and reports back to the main thread.
+"""Jobs that run on a worker thread and report back to the main thread.
 
-Subclasses compute without touching bpy (`_compute`), say how far they are
-(`fraction`) and stop when asked (`cancel`); the operator polls `is_alive`
-and, once done, reads `result` or `error` on the main thread.
+Nothing here touches bpy: the operators copy the scene into numpy arrays and
+plain values first (`JobInput`), a job computes on a worker thread (the core
+releases the GIL, so Blender stays responsive) and the main thread then reads
+`result` or `error`. That split is also what lets the tests run a job without
+Blender (core/tests/test_addon_jobs.py).
 """
 
 import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import backend
+
+
+class UserError(Exception):
+    """An error with a message meant for the user's eyes."""
 
 
 class WorkerJob:
+    """Base of the worker jobs: subclasses compute without touching bpy
+    (`_compute`), say how far they are (`fraction`) and stop when asked
+    (`cancel`); the operator polls `is_alive` and, once done, reads `result`
+    or `error` on the main thread."""
+
     title = "Working"
 
     def __init__(self, core, inp):
@@ -47,3 +64,149 @@ class WorkerJob:
 
     def fraction(self):
         return 0.0
+
+
+@dataclass
+class JobInput:
+    """Everything Build & Render needs, copied out of bpy."""
+
+    triangles: np.ndarray  # (N, 3, 3) float32, world space
+    objects: int
+    instances: int
+    camera: object  # a CameraSpec: kwargs() for bsplab.Camera, width, height, name
+    method: str
+    options: dict
+    mode: str
+    threads: int
+    cull: bool
+    compare_with_embree: bool
+    scene_name: str
+
+
+def make_camera(core, spec):
+    return core.Camera(**spec.kwargs())
+
+
+def foreign_embree_library():
+    """Name of an Embree library the host exports that clashes with embreex, if
+    any (see `bsplab.oracle.foreign_embree_library`)."""
+    return backend.import_core().oracle.foreign_embree_library()
+
+
+def compare_with_embree(core, tree, cam, inp):
+    """Trace the camera rays with the tree and with Embree; compare the hits."""
+    oracle = core.oracle
+    try:
+        import embreex  # noqa: F401  (the oracle imports it when tracing)
+    except ImportError as ex:
+        return {"available": False,
+                "message": "embreex is not installed, comparison skipped ({})".format(ex)}
+    clash = oracle.foreign_embree_library()
+    if clash is not None:
+        return {"available": False,
+                "message": "Embree comparison unavailable: this Blender exports its own {}, "
+                           "which clashes with embreex's Embree".format(clash)}
+    origins, directions = cam.rays(inp.camera.width, inp.camera.height)
+    start = time.perf_counter()
+    ours = tree.intersect(origins, directions, threads=inp.threads, cull=inp.cull)
+    bsplab_seconds = time.perf_counter() - start
+    tracer = oracle.EmbreeTracer(tree.triangles)
+    start = time.perf_counter()
+    theirs = tracer.intersect(origins, directions)
+    embree_seconds = time.perf_counter() - start
+    compare = oracle.compare(ours, theirs, triangles=tree.triangles,
+                             origins=origins, directions=directions)
+    return {
+        "available": True,
+        "bsplab_seconds": bsplab_seconds,
+        "embree_seconds": embree_seconds,
+        "embree_build_seconds": getattr(tracer, "build_seconds", None),
+        # How many times longer the tree takes than Embree for the same rays.
+        "time_ratio": bsplab_seconds / embree_seconds if embree_seconds > 0 else None,
+        # Only the counts: the per-ray index arrays are of no use in the panel.
+        "compare": {k: v for k, v in plain(compare).items() if not isinstance(v, (list, str))},
+    }
+
+
+def plain(value):
+    """Make core results JSON-friendly (numpy scalars and arrays included)."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist() if value.size <= 16 else "array{}".format(value.shape)
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+class Job(WorkerJob):
+    """Build & Render: build the tree, render the camera's view, optionally
+    compare the camera rays' hits with Embree's."""
+
+    title = "Building & Rendering"
+
+    def __init__(self, core, inp):
+        super().__init__(core, inp)
+        self.build_progress = core.Progress()
+        self.render_progress = core.Progress()
+
+    def _check_cancelled(self):
+        if self.cancelled:
+            raise self.core.Cancelled("cancelled")
+
+    def _compute(self):
+        core, inp = self.core, self.input
+        cam = make_camera(core, inp.camera)
+        tree = core.build(inp.triangles, method=inp.method,
+                          progress=self.build_progress, **inp.options)
+        self._check_cancelled()
+        image, render_stats = core.render(tree, cam, inp.camera.width, inp.camera.height,
+                                          mode=inp.mode, threads=inp.threads,
+                                          cull=inp.cull or inp.mode == "heat_culled",
+                                          progress=self.render_progress)
+        self._check_cancelled()
+        render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
+                            mode=inp.mode, camera=inp.camera.name)
+        stats = {
+            "scene": {"triangles": len(inp.triangles), "objects": inp.objects,
+                      "instances": inp.instances},
+            "build": dict(tree.stats),
+            "render": render_stats,
+        }
+        if inp.compare_with_embree:
+            stats["embree"] = compare_with_embree(core, tree, cam, inp)
+            self._check_cancelled()
+        return {"image": np.asarray(image, dtype=np.float32), "stats": plain(stats)}
+
+    def cancel(self):
+        super().cancel()
+        self.build_progress.cancel()
+        self.render_progress.cancel()
+
+    def fraction(self):
+        # Building usually dominates; weigh it accordingly.
+        return min(1.0, 0.6 * self.build_progress.value + 0.4 * self.render_progress.value)
+
+
+def error_message(core, ex):
+    """The user's message for an exception raised by a job."""
+    if isinstance(ex, UserError):
+        return str(ex)
+    if core is not None and isinstance(ex, core.Cancelled):
+        return "BSP Lab: Build & Render cancelled; the previous preview is unchanged"
+    if isinstance(ex, MemoryError):
+        # The core's message names the limit and what the build needed.
+        return "BSP Lab: the tree exceeds the memory budget: {}".format(ex)
+    if isinstance(ex, (ValueError, TypeError)):
+        # The core's checks: NaN/inf coordinates, options out of range.
+        return "BSP Lab cannot build the tree: {}".format(ex)
+    return "BSP Lab failed: {}: {}".format(type(ex).__name__, ex)
+
+
+def check_result(result):
+    """Refuse a finished render in which every camera ray missed."""
+    hits = result["stats"]["render"].get("hits")
+    if hits == 0:
+        raise UserError("No mesh in the camera's view: every camera ray missed")

@@ -3,40 +3,21 @@
 
 The work is split in three so that bpy data is only touched on the main
 thread: `read_scene()` copies everything the core needs into numpy arrays
-and plain values, `Job.run()` builds and renders without touching bpy (the
-core releases the GIL, so a worker thread keeps Blender responsive), and
+and plain values, `jobs.Job.run()` builds and renders without touching bpy
+(the core releases the GIL, so a worker thread keeps Blender responsive), and
 `apply_result()` writes the preview image and the statistics.
 """
 
-import importlib
 import json
-import time
 import traceback
-from dataclasses import dataclass
 
 import bpy
-import numpy as np
 
-from . import backend, camera, extract, jobs, preview, sweep
-
-
-class UserError(Exception):
-    """An error with a message meant for the user's eyes."""
-
-
-@dataclass
-class JobInput:
-    triangles: np.ndarray
-    objects: int
-    instances: int
-    camera: camera.CameraSpec
-    method: str
-    options: dict
-    mode: str
-    threads: int
-    cull: bool
-    compare_with_embree: bool
-    scene_name: str
+from . import backend, camera, extract, preview, sweep
+# The worker side (bpy-free, tested without Blender); re-exported because the
+# operators and the Blender tests name them here.
+from .jobs import (Job, JobInput, UserError, check_result, error_message,  # noqa: F401
+                   foreign_embree_library, make_camera)
 
 
 # The one job in flight, if any; the panel reads its progress.
@@ -115,7 +96,7 @@ def read_sweep(context, core):
         raise UserError(str(ex)) from ex
     cam, geometry = read_camera_and_geometry(context, core)
     try:
-        importlib.import_module(core.__name__ + ".checks").triangles(geometry.triangles)
+        core.check_triangles(geometry.triangles)
     except (TypeError, ValueError) as ex:
         raise UserError("BSP Lab cannot build the tree: {}".format(ex)) from ex
     return sweep.SweepInput(
@@ -126,139 +107,7 @@ def read_sweep(context, core):
 
 
 # -----------------------------------------------------------------------------
-# Worker thread: build, render, compare; no bpy in here
-
-
-def make_camera(core, spec):
-    return core.Camera(**spec.kwargs())
-
-
-def foreign_embree_library():
-    """Name of an Embree library Blender exports that clashes with embreex, if
-    any (see `bsplab.oracle.foreign_embree_library`)."""
-    core = backend.import_core()
-    return importlib.import_module(core.__name__ + ".oracle").foreign_embree_library()
-
-
-def compare_with_embree(core, tree, cam, inp):
-    """Trace the camera rays with the tree and with Embree; compare the hits."""
-    try:
-        oracle = importlib.import_module(core.__name__ + ".oracle")
-        importlib.import_module("embreex")
-    except ImportError as ex:
-        return {"available": False,
-                "message": "embreex is not installed, comparison skipped ({})".format(ex)}
-    clash = foreign_embree_library()
-    if clash is not None:
-        return {"available": False,
-                "message": "Embree comparison unavailable: this Blender exports its own {}, "
-                           "which clashes with embreex's Embree".format(clash)}
-    origins, directions = cam.rays(inp.camera.width, inp.camera.height)
-    start = time.perf_counter()
-    ours = tree.intersect(origins, directions, threads=inp.threads, cull=inp.cull)
-    bsplab_seconds = time.perf_counter() - start
-    tracer = oracle.EmbreeTracer(tree.triangles)
-    start = time.perf_counter()
-    theirs = tracer.intersect(origins, directions)
-    embree_seconds = time.perf_counter() - start
-    compare = oracle.compare(ours, theirs, triangles=tree.triangles,
-                             origins=origins, directions=directions)
-    return {
-        "available": True,
-        "bsplab_seconds": bsplab_seconds,
-        "embree_seconds": embree_seconds,
-        "embree_build_seconds": getattr(tracer, "build_seconds", None),
-        # How many times longer the tree takes than Embree for the same rays.
-        "time_ratio": bsplab_seconds / embree_seconds if embree_seconds > 0 else None,
-        # Only the counts: the per-ray index arrays are of no use in the panel.
-        "compare": {k: v for k, v in _plain(compare).items() if not isinstance(v, (list, str))},
-    }
-
-
-def _plain(value):
-    """Make core results JSON-friendly (numpy scalars and arrays included)."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist() if value.size <= 16 else "array{}".format(value.shape)
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-class Job(jobs.WorkerJob):
-    """Build + render + optional comparison, runnable on a worker thread."""
-
-    title = "Building & Rendering"
-
-    def __init__(self, core, inp):
-        super().__init__(core, inp)
-        self.build_progress = core.Progress()
-        self.render_progress = core.Progress()
-
-    def _check_cancelled(self):
-        if self.cancelled:
-            raise self.core.Cancelled("cancelled")
-
-    def _compute(self):
-        core, inp = self.core, self.input
-        cam = make_camera(core, inp.camera)
-        tree = core.build(inp.triangles, method=inp.method,
-                          progress=self.build_progress, **inp.options)
-        self._check_cancelled()
-        image, render_stats = core.render(tree, cam, inp.camera.width, inp.camera.height,
-                                          mode=inp.mode, threads=inp.threads,
-                                          cull=inp.cull or inp.mode == "heat_culled",
-                                          progress=self.render_progress)
-        self._check_cancelled()
-        render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
-                            mode=inp.mode, camera=inp.camera.name)
-        stats = {
-            "scene": {"triangles": len(inp.triangles), "objects": inp.objects,
-                      "instances": inp.instances},
-            "build": dict(tree.stats),
-            "render": render_stats,
-        }
-        if inp.compare_with_embree:
-            stats["embree"] = compare_with_embree(core, tree, cam, inp)
-            self._check_cancelled()
-        return {"image": np.asarray(image, dtype=np.float32), "stats": _plain(stats)}
-
-    def cancel(self):
-        super().cancel()
-        self.build_progress.cancel()
-        self.render_progress.cancel()
-
-    def fraction(self):
-        # Building usually dominates; weigh it accordingly.
-        return min(1.0, 0.6 * self.build_progress.value + 0.4 * self.render_progress.value)
-
-
-def error_message(core, ex):
-    """The user's message for an exception raised by the job."""
-    if isinstance(ex, UserError):
-        return str(ex)
-    if core is not None and isinstance(ex, core.Cancelled):
-        return "BSP Lab: Build & Render cancelled; the previous preview is unchanged"
-    if isinstance(ex, MemoryError):
-        # The core's message names the limit and what the build needed.
-        return "BSP Lab: the tree exceeds the memory budget: {}".format(ex)
-    if isinstance(ex, (ValueError, TypeError)):
-        # The core's checks: NaN/inf coordinates, options out of range.
-        return "BSP Lab cannot build the tree: {}".format(ex)
-    return "BSP Lab failed: {}: {}".format(type(ex).__name__, ex)
-
-
-# -----------------------------------------------------------------------------
 # Main thread: apply the result
-
-
-def check_result(result):
-    hits = result["stats"]["render"].get("hits")
-    if hits == 0:
-        raise UserError("No mesh in the camera's view: every camera ray missed")
 
 
 def apply_result(scene, result):

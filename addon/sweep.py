@@ -40,7 +40,7 @@ class SweepError(Exception):
 @dataclass
 class SweepInput:
     triangles: np.ndarray
-    camera: camera.CameraSpec
+    camera: "camera.CameraSpec"  # a string: the core (and its CameraSpec) may be missing
     methods: list
     k_min: int
     k_max: int

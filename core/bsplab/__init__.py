@@ -1,13 +1,14 @@
 """BSP Lab: build, trace and compare kd and BSP ray-tracing acceleration
 structures. See docs/api.md for the API."""
 
-from . import _core
+from . import _core, oracle
 from ._core import Cancelled, Progress
 from .camera import Camera
+from .checks import triangles as check_triangles
 from .method_table import methods, option_schema
 from .render import RENDER_MODES, render
 from .tree import Tree, build
 
 __version__ = "0.1.0"
-__all__ = ["Camera", "Cancelled", "Progress", "RENDER_MODES", "Tree", "build", "methods",
-           "option_schema", "render", "_core"]
+__all__ = ["Camera", "Cancelled", "Progress", "RENDER_MODES", "Tree", "build",
+           "check_triangles", "methods", "option_schema", "oracle", "render", "_core"]

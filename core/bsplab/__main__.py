@@ -40,7 +40,8 @@ def _under_a_directory(p: Path, flag: str) -> None:
 
 def cmd_demo(args) -> int:
     import bsplab
-    from bsplab import bench, oracle, png, scenes, workloads
+    from bsplab import bench, oracle, scenes, workloads
+    from bsplab.image import write_png
 
     out = output_file(args.out, "--out", "demo.png")
     tris = bench.load(args.scene)
@@ -52,7 +53,7 @@ def cmd_demo(args) -> int:
     image, rstats = bsplab.render(tree, camera, args.width, args.height, args.mode,
                                   threads=args.threads)
     out.parent.mkdir(parents=True, exist_ok=True)
-    png.write_png(out, image)
+    write_png(out, image)
     s = tree.stats
     rows = [
         ("build time", f"{s['build_seconds']:.3f} s"),

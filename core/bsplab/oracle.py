@@ -7,6 +7,10 @@ import time
 
 import numpy as np
 
+# The oracle's public API, used by the add-on, the tests and the benchmarks.
+__all__ = ["EmbreeTracer", "available", "compare", "edge_distance",
+           "foreign_embree_library", "plane_distance"]
+
 
 def available() -> bool:
     try:

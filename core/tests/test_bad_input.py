@@ -215,7 +215,7 @@ def run_cli(capsys, *argv):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["demo", "--scene", "{d}"], "error: {d}: is a directory, not a mesh file (.ply or .obj)"),
+    (["demo", "--scene", "{d}"], "error: {d}: is a directory, not a mesh file (.ply, .obj, .glb, .gltf, .stl, .off)"),
     (["demo", "--scene", "{d}/dir.ply"], "error: {d}/dir.ply: is a directory, not a mesh file"),
     (["demo", "--scene", "{d}/empty.obj"], "error: {d}/empty.obj: the file is empty: no "
                                            "triangles"),
@@ -258,4 +258,4 @@ def test_cli_error_is_one_line_without_traceback(tmp_path):
     r = subprocess.run([sys.executable, "-m", "bsplab", "demo", "--scene", str(tmp_path),
                         "--out", str(tmp_path / "x.png")], capture_output=True, text=True)
     assert r.returncode == 2
-    assert r.stderr == f"error: {tmp_path}: is a directory, not a mesh file (.ply or .obj)\n"
+    assert r.stderr == f"error: {tmp_path}: is a directory, not a mesh file (.ply, .obj, .glb, .gltf, .stl, .off)\n"

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from bsplab import io
+from bsplab.formats import ply
 
 REPO = Path(__file__).resolve().parents[2]
 SHARED = REPO.parent / "shared" / "scenes"
@@ -59,7 +60,7 @@ def test_binary_ply_mixed_types_and_polygons(tmp_path, order):
 def test_binary_ply_all_quads_uses_fixed_layout(tmp_path, monkeypatch):
     path = tmp_path / "quads.ply"
     path.write_bytes(_binary_ply(polys=[[0, 1, 2, 3], [1, 2, 4, 3]]))
-    monkeypatch.setattr(io, "_read_binary_variable", _fail)
+    monkeypatch.setattr(ply, "_read_binary_variable", _fail)
     _, f = io.read_ply(path)
     np.testing.assert_array_equal(f, [[0, 1, 2], [0, 2, 3], [1, 2, 4], [1, 4, 3]])
 
@@ -305,13 +306,94 @@ def test_ascii_ply_truncated(tmp_path):
 
 
 def test_missing_file_and_unknown_extension(tmp_path):
-    with pytest.raises(FileNotFoundError):
-        io.load_mesh(tmp_path / "nope.ply")
-    with pytest.raises(FileNotFoundError):
-        io.load_mesh(tmp_path / "nope.obj")
-    (tmp_path / "mesh.stl").write_text("solid x")
-    with pytest.raises(ValueError, match="stl"):
-        io.load_mesh(tmp_path / "mesh.stl")
+    for name in ("nope.ply", "nope.obj", "nope.glb", "nope.stl"):
+        with pytest.raises(FileNotFoundError, match="no such file"):
+            io.load_mesh(tmp_path / name)
+    (tmp_path / "mesh.xyz").write_text("0 0 0")
+    with pytest.raises(ValueError, match=r"unsupported mesh format '\.xyz' \(expected one of "
+                                         r"\.ply, \.obj, \.glb, \.gltf, \.stl, \.off\)"):
+        io.load_mesh(tmp_path / "mesh.xyz")
+
+
+# -- formats read through trimesh ---------------------------------------------------
+
+@pytest.fixture
+def trimesh():
+    """trimesh, which writes the test files (and reads them inside bsplab.io)."""
+    return pytest.importorskip("trimesh")
+
+
+def _two_node_scene(trimesh):
+    """A glTF scene: one quad mesh placed twice (moved and turned), a triangle once."""
+    quad = trimesh.Trimesh(VERTS[:4], [[0, 1, 2], [0, 2, 3]], process=False)
+    tri = trimesh.Trimesh(VERTS[[0, 1, 4]], [[0, 1, 2]], process=False)
+    moved = trimesh.transformations.translation_matrix([10.0, 0.0, 0.0])
+    turned = trimesh.transformations.rotation_matrix(np.pi / 2, [0, 0, 1])
+    scene = trimesh.Scene()
+    scene.add_geometry(quad, node_name="a", geom_name="quad", transform=moved)
+    scene.add_geometry(quad, node_name="b", geom_name="quad", transform=turned)
+    scene.add_geometry(tri, node_name="c", geom_name="tri")
+    expected = np.concatenate([VERTS[:4][[[0, 1, 2], [0, 2, 3]]] + [10.0, 0.0, 0.0],
+                               VERTS[:4][[[0, 1, 2], [0, 2, 3]]] @ turned[:3, :3].T,
+                               VERTS[[0, 1, 4]][None]])
+    return scene, expected
+
+
+def _sorted_triangles(tris):
+    """Triangles as a set (rows sorted), for comparing scenes whose node order
+    the file format does not fix."""
+    t = np.round(np.asarray(tris, np.float64).reshape(-1, 9), 5)
+    return t[np.lexsort(t.T[::-1])]
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".gltf"])
+def test_gltf_scene_is_flattened_to_world_space(tmp_path, suffix, trimesh):
+    scene, expected = _two_node_scene(trimesh)
+    path = tmp_path / f"scene{suffix}"
+    scene.export(path)
+    tris = io.load_mesh(path)
+    assert tris.dtype == np.float32 and tris.shape == (5, 3, 3)
+    np.testing.assert_allclose(_sorted_triangles(tris), _sorted_triangles(expected), atol=1e-5)
+    v, f = io.read_mesh(path)
+    assert v.dtype == np.float32 and f.dtype == np.int32 and f.shape == (5, 3)
+    np.testing.assert_array_equal(v[f], tris)
+
+
+def test_stl_and_off_round_trip(tmp_path, trimesh):
+    mesh = trimesh.Trimesh(VERTS, TRIS, process=False)
+    for suffix in (".stl", ".off"):
+        path = tmp_path / f"mesh{suffix}"
+        mesh.export(path)
+        np.testing.assert_allclose(_sorted_triangles(io.load_mesh(path)),
+                                   _sorted_triangles(VERTS[TRIS]), atol=1e-6)
+
+
+def test_trimesh_formats_are_checked_like_ply(tmp_path, trimesh):
+    bad = VERTS.copy()
+    bad[2, 1] = np.nan
+    trimesh.Trimesh(bad, TRIS, process=False).export(tmp_path / "nan.glb")
+    with pytest.raises(ValueError, match=r"nan.glb: vertex \d+ has a NaN or infinite"):
+        io.load_mesh(tmp_path / "nan.glb")
+    (tmp_path / "empty.stl").write_text("solid x\nendsolid x\n")
+    with pytest.raises(ValueError, match="empty.stl: the mesh has no faces: no triangles"):
+        io.load_mesh(tmp_path / "empty.stl")
+    (tmp_path / "noise.glb").write_bytes(b"glTF" + np.random.default_rng(1).bytes(200))
+    with pytest.raises(ValueError, match="noise.glb: not a readable GLB file") as err:
+        io.load_mesh(tmp_path / "noise.glb")
+    assert str(err.value).startswith(str(tmp_path / "noise.glb"))
+    (tmp_path / "dir.glb").mkdir()
+    with pytest.raises(ValueError, match="is a directory, not a mesh file"):
+        io.load_mesh(tmp_path / "dir.glb")
+
+
+def test_ply_and_glb_of_one_mesh_give_the_same_triangles(tmp_path, trimesh):
+    """The same scene through bsplab's PLY reader and trimesh's GLB reader."""
+    from bsplab import scenes
+    v, f = scenes.generate_mesh("room")
+    io.write_ply(tmp_path / "room.ply", v, f)
+    trimesh.Trimesh(v, f, process=False).export(tmp_path / "room.glb")
+    np.testing.assert_array_equal(io.load_mesh(tmp_path / "room.glb"),
+                                  io.load_mesh(tmp_path / "room.ply"))
 
 
 def test_fan_triangulate_mixed_sizes():

@@ -4,11 +4,13 @@
 Run by `bsplab.io.load_blend()` (the experiment runner's .blend scenes) in a
 Blender process, or in a Python with the `bpy` module:
 
-    blender -b scene.blend --python addon/export_scene.py -- out.npz
-    python addon/export_scene.py -- out.npz scene.blend
+    blender -b scene.blend --python .../bsplab/blender/export_scene.py -- out.npz
+    python .../bsplab/blender/export_scene.py -- out.npz scene.blend
 
-It uses the add-on's own extraction (extract.py, camera.py beside it), so
-an experiment sees exactly the triangles and camera that Build & Render sees.
+It uses extract.py and camera.py beside it, imported as plain modules: this
+Blender's Python need not be able to load the compiled core (`import bsplab`).
+The add-on uses the same two modules, so an experiment sees exactly the
+triangles and camera that Build & Render sees.
 """
 
 import os
@@ -18,7 +20,7 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import camera  # noqa: E402  (the add-on's modules, imported as plain modules)
+import camera  # noqa: E402  (bsplab/blender's modules, imported as plain modules)
 import extract  # noqa: E402
 
 

@@ -1,0 +1,88 @@
+"""What every mesh reader's result must satisfy, and the pieces the readers share.
+
+Coordinates become float32 for the trees, so a NaN, an infinity or a value
+beyond float32's range is refused here rather than turning into a wrong tree;
+an index must name a vertex. Messages start with the file's name.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Union
+
+import numpy as np
+
+PathLike = Union[str, Path]
+
+# Every extension bsplab.io.read_mesh reads: PLY and OBJ by bsplab's own
+# readers (ply.py, obj.py), the rest through trimesh (via_trimesh.py).
+MESH_FORMATS = ("ply", "obj", "glb", "gltf", "stl", "off")
+
+
+def suffixes(formats=MESH_FORMATS) -> str:
+    """'.ply, .obj, ...' for messages."""
+    return ", ".join("." + f for f in formats)
+
+
+def fan_triangulate(counts: np.ndarray, flat: np.ndarray, name: str = "mesh") -> np.ndarray:
+    """(F,3) triangles from polygons given as per-face sizes and concatenated indices.
+
+    Polygon (v0, v1, ..., vk) becomes (v0, v1, v2), (v0, v2, v3), ...: vectorized
+    with np.repeat so mixed polygon sizes cost no Python loop.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    if counts.size and counts.min() < 3:
+        bad = int(np.argmax(counts < 3))
+        raise ValueError(f"{name}: face {bad} has {counts[bad]} vertices (need at least 3)")
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1])) if counts.size else counts
+    per_face = counts - 2
+    first = np.repeat(starts, per_face)
+    # j-th triangle of a face uses corners j+1 and j+2.
+    j = np.arange(per_face.sum()) - np.repeat(np.cumsum(per_face) - per_face, per_face)
+    flat = np.asarray(flat)
+    return np.stack([flat[first], flat[first + j + 1], flat[first + j + 2]], axis=1)
+
+
+def check_indices(faces: np.ndarray, n_vertices: int, name: str) -> np.ndarray:
+    """Faces as int32 after checking every index is a valid vertex number."""
+    if faces.size:
+        lo, hi = faces.min(), faces.max()
+        if lo < 0 or hi >= n_vertices:
+            bad = lo if lo < 0 else hi
+            raise ValueError(f"{name}: vertex index {int(bad)} out of range "
+                             f"(file has {n_vertices} vertices)")
+    return faces.astype(np.int32).reshape(-1, 3)
+
+
+def face_of(counts: np.ndarray, corner: int) -> int:
+    """The face holding the corner-th entry of the concatenated face lists."""
+    return int(np.searchsorted(np.cumsum(counts), corner, side="right"))
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def checked_vertices(v: np.ndarray, name: str, where) -> np.ndarray:
+    """float32 vertices after refusing NaN, infinite and beyond-float32
+    coordinates; `where(i)` names vertex i (0-based) in the message."""
+    v = np.asarray(v, dtype=np.float64)
+    bad = ~np.isfinite(v).all(axis=1)
+    why = "a NaN or infinite coordinate"
+    if not bad.any():
+        bad = (np.abs(v) > FLOAT32_MAX).any(axis=1)
+        why = "a coordinate beyond the float32 range of +-3.4e38"
+    if bad.any():
+        i = int(np.argmax(bad))
+        xyz = ", ".join(f"{x:g}" for x in v[i])
+        raise ValueError(f"{name}: {where(i)} has {why} ({xyz})")
+    return v.astype(np.float32)
+
+
+def read_bytes(path: PathLike) -> bytes:
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{path}: is a directory, not a mesh file "
+                         f"({suffixes()})")
+    if not p.exists():
+        raise FileNotFoundError(f"{path}: no such file")
+    return p.read_bytes()
