@@ -98,4 +98,4 @@ if __name__ == "__main__":
         for method in bsplab.methods():
             key = f"{scene}/{method}{extra}"
             digest, cost = _measure(key)
-        print(f'    "{key}": ("{digest}", {cost!r}),')
+            print(f'    "{key}": ("{digest}", {cost!r}),')
