@@ -136,34 +136,32 @@ void check_flat_tree(const Tree& t) {
     EXPECT_EQ(kd + general + leaves, t.nodes.size());
 }
 
-TEST(Node, KdTreeFlattensToKdNodesAndLeaves) {
+// Builds over the small scene on one thread; returns the (kd, general) counts.
+struct Kinds {
+    uint64_t kd, general;
+};
+Kinds flattened_kinds(bool sweep, bool kd_nodes) {
     BuildOptions o;
     o.threads = 1;
-    const Tree t = build_kd_tree(scene(300), o);
-    EXPECT_GT(t.stats.kd_nodes, 0u);
-    EXPECT_EQ(t.stats.general_nodes, 0u);
+    o.kd_nodes = kd_nodes;
+    const Tree t = sweep ? build_bsp_tree(scene(300), o) : build_kd_tree(scene(300), o);
     check_flat_tree(t);
+    return {t.stats.kd_nodes, t.stats.general_nodes};
 }
 
-TEST(Node, SweepTreeFlattensToGeneralNodesAndLeaves) {
-    // Without ^Kd every split of the sweep builder is a general node.
-    BuildOptions o;
-    o.threads = 1;
-    const Tree t = build_bsp_tree(scene(300), o);
-    EXPECT_GT(t.stats.general_nodes, 0u);
-    EXPECT_EQ(t.stats.kd_nodes, 0u);
-    check_flat_tree(t);
-}
-
-TEST(Node, KdSweepTreeStoresAxisSplitsAsKdNodes) {
-    // ^Kd over the axes: every candidate is an axis plane, stored as a kd node.
-    BuildOptions o;
-    o.threads = 1;
-    o.kd_nodes = true;
-    const Tree t = build_bsp_tree(scene(300), o);
-    EXPECT_GT(t.stats.kd_nodes, 0u);
-    EXPECT_EQ(t.stats.general_nodes, 0u);
-    check_flat_tree(t);
+TEST(Node, FlattenedTreesHoldTheirBuildersKinds) {
+    // The kd builder makes kd nodes only; the sweep over the axes makes
+    // general nodes without ^Kd and stores every (axis) split as a kd node
+    // with it.
+    const Kinds kd = flattened_kinds(false, false);
+    EXPECT_GT(kd.kd, 0u);
+    EXPECT_EQ(kd.general, 0u);
+    const Kinds sweep = flattened_kinds(true, false);
+    EXPECT_EQ(sweep.kd, 0u);
+    EXPECT_GT(sweep.general, 0u);
+    const Kinds sweep_kd = flattened_kinds(true, true);
+    EXPECT_GT(sweep_kd.kd, 0u);
+    EXPECT_EQ(sweep_kd.general, 0u);
 }
 
 }  // namespace
