@@ -36,7 +36,8 @@ constexpr int axis_of(NodeKind k) {
 //   general  tag 7 in three bits (0b111): `first` indexes planes[] (n.x, n.y,
 //            n.z, d; the plane n.x = d), the other 29 bits the index of the
 //            child above.
-// Kd nodes, the most frequent in a traversal, are told apart with one mask.
+// Kd nodes spend two bits on the tag; leaves and general nodes share the
+// two-bit tag 3 and spend a third bit to tell themselves apart.
 // The child below (n.x < d) always follows its parent.
 // The encoders assert that a child index or count fits (debug, sanitizer and
 // C++ test builds); callers that can overflow check before (kMaxNodes,
