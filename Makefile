@@ -10,7 +10,7 @@ DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" 
           "matplotlib>=3.7" "dask[distributed]>=2024.1" "hypothesis>=6.100" \
           "trimesh>=4" "pillow>=9"
 
-.PHONY: all venv core demo demo-core test test-core test-sanitize test-tsan test-blender bench bench-family bench-cull results results-quick addon scenes clean
+.PHONY: all venv core demo demo-core test test-cpp test-core test-sanitize test-tsan test-blender bench bench-family bench-cull results results-quick addon scenes clean
 
 all: demo
 
@@ -36,7 +36,14 @@ demo: core
 demo-core: core
 	$(BIN)/python -m bsplab demo --scene spheres --out out/demo.png
 
-test: test-core test-sanitize test-blender
+test: test-cpp test-core test-sanitize test-blender
+
+# The C++ unit tests (GoogleTest; core/cpp_tests): cells, areas, the cost
+# model, the node encoding, the triangle test. Their own Debug build in
+# core/build/cpp-tests (asserts on, no Python); apt-installs libgtest-dev when
+# missing. About a minute with the compile. docs/testing.md.
+test-cpp:
+	bash core/cpp_tests/run.sh
 
 test-core: core
 	$(BIN)/python -m pytest -q core/tests

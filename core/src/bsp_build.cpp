@@ -12,6 +12,7 @@
 
 #include "build_tree.hpp"
 #include "cell.hpp"
+#include "cost_model.hpp"
 #include "directions.hpp"
 #include "parallel.hpp"
 #include "registry.hpp"
@@ -45,8 +46,8 @@ struct Candidate {
 };
 
 struct SweepResult {
-    Candidate best;      // under the builder's cost model
-    Candidate fallback;  // ^Kd: general splits at the constant K_d,BSP
+    Candidate best;      // under the cost model's step()
+    Candidate fallback;  // ^Kd: general splits at its fallback_step()
 };
 
 // BSP_IZE's per-node BVH over the references: a box, a centre, an order slot
@@ -57,7 +58,8 @@ class BspBuilder {
 public:
     BspBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
                int threads, MemoryBudget& memory)
-        : tris_(tris), opt_(opt), progress_(progress), threads_(threads), memory_(memory) {
+        : tris_(tris), opt_(opt), cost_(opt), progress_(progress), threads_(threads),
+          memory_(memory) {
         spawn_depth_ = spawn_depth(threads);
         // A general plane's crossing is computed as (d - n.o) / (n.dir) in
         // float, off by a few ulps of the coordinates; two planes with almost
@@ -105,7 +107,7 @@ public:
         for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
         if (strategy_->tries_triangle_planes()) merge(total, ize_planes(refs, cell, area, rng));
 
-        const float leaf_cost = opt_.intersect_cost * float(n);
+        const float leaf_cost = cost_.leaf(n);
         Candidate s = total.best;
         if (!(s.cost < leaf_cost)) s = total.fallback;  // Ize et al.'s retry at a constant cost
         if (!(s.cost < leaf_cost)) return leaf(refs, area, depth, credit);
@@ -147,10 +149,10 @@ public:
         node->area = float(area);
         int axis;
         if (s.kd && is_axis(s.dir, axis)) {
-            node->kind = axis;
+            node->kind = kd_kind(axis);
             node->split = s.pos;
         } else {
-            node->kind = 3;
+            node->kind = NodeKind::General;
             node->plane = {s.dir.x, s.dir.y, s.dir.z, s.pos};
         }
         double lbudget, rbudget;
@@ -178,6 +180,7 @@ public:
 private:
     const std::vector<Triangle>& tris_;
     const BuildOptions& opt_;
+    const CostModel cost_;
     Progress* progress_;
     int threads_;
     int spawn_depth_;
@@ -237,39 +240,26 @@ private:
         if (r.fallback.cost < into.fallback.cost) into.fallback = r.fallback;
     }
 
-    // The traversal cost of a split: a kd node, or a general node priced by
-    // the ^Kd model alpha K_i (n - 1) + K_d (Ize et al. 2008).
-    float step_cost(bool kd, size_t n) const {
-        if (kd || !opt_.kd_nodes) return opt_.traversal_cost;
-        return opt_.alpha * opt_.intersect_cost * float(n - 1) + opt_.traversal_cost;
-    }
-
-    // Offers one candidate plane (counts given) to the result.
+    // Offers one candidate plane (counts given) to the result: at the cost
+    // model's step, and under ^Kd a general plane at its fallback step too.
     void offer(SweepResult& res, const Vec3& u, bool kd, float p, bool planar_left, uint32_t l,
                uint32_t r, double below, double above, double inv_area, size_t n) const {
-        const float sah = opt_.intersect_cost *
-                          float(below * inv_area * double(l) + above * inv_area * double(r));
-        const float bonus = (l == 0 || r == 0) ? 1.0f - opt_.empty_bonus : 1.0f;
-        const float cost = (step_cost(kd, n) + sah) * bonus;
+        const double p_below = below * inv_area, p_above = above * inv_area;
+        const float cost = cost_.split(cost_.step(kd, n), p_below, l, p_above, r);
         if (cost < res.best.cost) res.best = {u, p, planar_left, kd, cost, l, r};
-        if (opt_.kd_nodes && !kd) {
-            const float fb = (opt_.general_cost + sah) * bonus;
+        if (cost_.has_fallback(kd)) {
+            const float fb = cost_.split(cost_.fallback_step(), p_below, l, p_above, r);
             if (fb < res.fallback.cost) res.fallback = {u, p, planar_left, kd, fb, l, r};
         }
     }
 
-    // The two parts' surfaces cover the cell's and add the cap twice, so
-    // SA(L) + SA(R) >= SA(P) and any split costs at least
-    // K_d + K_i min(n_L, n_R): a candidate that cannot beat the best so far
-    // needs no areas.
-    bool may_win(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr,
-                 uint32_t np) const {
-        const uint32_t lo = std::min(nl, nr);  // planar ones may join either side
-        const float bonus = lo == 0 ? 1.0f - opt_.empty_bonus : 1.0f;
-        const float tests = opt_.intersect_cost * float(lo);
-        if ((step_cost(kd, n) + tests) * bonus < res.best.cost) return true;
-        return opt_.kd_nodes && !kd && (opt_.general_cost + tests) * bonus < res.fallback.cost;
-        (void)np;
+    // Whether a candidate with nl references below and nr above (those in
+    // the plane not yet counted) can beat the best so far or the fallback:
+    // if not, its areas need not be computed.
+    bool may_win(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr) const {
+        if (cost_.lower_bound(cost_.step(kd, n), nl, nr) < res.best.cost) return true;
+        return cost_.has_fallback(kd) &&
+               cost_.lower_bound(cost_.fallback_step(), nl, nr) < res.fallback.cost;
     }
 
     SweepResult sweep(const NodeRefs& nr, const Cell& cell, double area, const Vec3& u) const {
@@ -321,7 +311,7 @@ private:
             // floors) can be cut off into a flat cell, as in the kd builder.
             const bool at_lo = is_ax && np > 0 && double(p) == clo && chi > clo;
             const bool at_hi = is_ax && np > 0 && double(p) == chi && chi > clo;
-            if ((inside || at_lo || at_hi) && may_win(res, kd, n, nl, nr_, np)) {
+            if ((inside || at_lo || at_hi) && may_win(res, kd, n, nl, nr_)) {
                 double below, above;
                 cp.eval(double(p), below, above);
                 if (!at_hi) offer(res, u, kd, p, true, nl + np, nr_, below, above, inv_area, n);

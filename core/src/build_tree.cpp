@@ -1,5 +1,7 @@
 #include "build_tree.hpp"
 
+#include "cost_model.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -40,7 +42,7 @@ double normalise_scale(std::vector<Triangle>& triangles) {
 using Direction = std::tuple<float, float, float>;
 
 struct StatsWalker {
-    const BuildOptions& opt;
+    const CostModel cost;
     BuildStats& st;
     double inv_root_area = 0;
     double leaf_depth_sum = 0;
@@ -50,7 +52,8 @@ struct StatsWalker {
     void walk(const BuildNode& n, int depth) {
         const double p = double(n.area) * inv_root_area;
         st.max_depth = std::max(st.max_depth, depth);
-        if (n.kind < 0) {
+        st.sah_cost += cost.tree_term(p, n.kind, n.refs.size());
+        if (n.kind == NodeKind::Leaf) {
             ++st.leaves;
             const uint64_t c = n.refs.size();
             if (c == 0) ++st.empty_leaves;
@@ -58,19 +61,16 @@ struct StatsWalker {
             st.references += c;
             st.max_leaf_size = std::max(st.max_leaf_size, c);
             leaf_depth_sum += depth;
-            st.sah_cost += p * opt.intersect_cost * double(c);
             return;
         }
         ++st.interior_nodes;
         if (level_dirs.size() <= size_t(depth)) level_dirs.resize(depth + 1);
-        if (n.kind < 3) {
+        if (is_kd(n.kind)) {
             ++st.kd_nodes;
-            st.sah_cost += p * opt.traversal_cost;
-            const float e[3] = {float(n.kind == 0), float(n.kind == 1), float(n.kind == 2)};
-            level_dirs[depth].emplace_back(e[0], e[1], e[2]);
+            const int axis = axis_of(n.kind);
+            level_dirs[depth].emplace_back(float(axis == 0), float(axis == 1), float(axis == 2));
         } else {
             ++st.general_nodes;
-            st.sah_cost += p * (opt.kd_nodes ? opt.general_cost : opt.traversal_cost);
             level_dirs[depth].emplace_back(n.plane.nx, n.plane.ny, n.plane.nz);
         }
         walk(*n.child[0], depth + 1);
@@ -84,7 +84,8 @@ struct Flattener {
     uint32_t emit(const BuildNode& n) {
         if (tree.nodes.size() >= kMaxNodes) throw std::length_error("tree exceeds 2^29 nodes");
         const uint32_t index = uint32_t(tree.nodes.size());
-        if (n.kind < 0) {
+        if (n.kind == NodeKind::Leaf) {
+            if (n.refs.size() > kMaxLeafCount) throw std::length_error("a leaf exceeds 2^29 references");
             const uint32_t count = uint32_t(n.refs.size());
             const bool clipped = tree.options.leaf_boxes == LeafBoxes::Clipped;
             if (clipped) tree.boxes.insert(tree.boxes.end(), n.ref_boxes.begin(), n.ref_boxes.end());
@@ -99,8 +100,8 @@ struct Flattener {
         tree.nodes.push_back(Node());
         emit(*n.child[0]);
         const uint32_t above = emit(*n.child[1]);
-        if (n.kind < 3) {
-            tree.nodes[index] = Node::kd(n.kind, n.split, above);
+        if (is_kd(n.kind)) {
+            tree.nodes[index] = Node::kd(axis_of(n.kind), n.split, above);
         } else {
             tree.nodes[index] = Node::general(uint32_t(tree.planes.size()), above);
             tree.planes.push_back(n.plane);
@@ -168,7 +169,7 @@ std::vector<std::string> degeneracy_warnings(const BuildStats& st) {
 
 void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
     BuildStats& st = tree.stats;
-    StatsWalker w{tree.options, st};
+    StatsWalker w{CostModel(tree.options), st};
     w.inv_root_area = root.area > 0 ? 1.0 / double(root.area) : 0.0;
     w.walk(root, 0);
     st.mean_leaf_depth = st.leaves ? w.leaf_depth_sum / double(st.leaves) : 0.0;

@@ -13,8 +13,8 @@
 namespace bsp {
 
 struct BuildNode {
-    int kind = -1;  // -1 leaf, 0..2 kd axis, 3 general plane
-    float split = 0;
+    NodeKind kind = NodeKind::Leaf;
+    float split = 0;  // kd nodes: the plane's position along the axis
     Plane plane{};  // general nodes: the plane n.x = d
     float area = 0; // surface area of the node's cell (for the SAH cost stat)
     std::unique_ptr<BuildNode> child[2];

@@ -13,6 +13,7 @@
 
 #include "build_tree.hpp"
 #include "clip.hpp"
+#include "cost_model.hpp"
 #include "parallel.hpp"
 
 namespace bsp {
@@ -78,7 +79,8 @@ class KdBuilder {
 public:
     KdBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
               int threads, MemoryBudget& memory)
-        : tris_(tris), opt_(opt), progress_(progress), threads_(threads), memory_(memory) {
+        : tris_(tris), opt_(opt), cost_(opt), progress_(progress), threads_(threads),
+          memory_(memory) {
         spawn_depth_ = spawn_depth(threads);
     }
 
@@ -94,6 +96,7 @@ public:
 private:
     const std::vector<Triangle>& tris_;
     const BuildOptions& opt_;
+    const CostModel cost_;
     Progress* progress_;
     int threads_;
     int spawn_depth_;
@@ -106,7 +109,6 @@ private:
         const float parent_area = box.area();
         if (!(parent_area > 0.0f) || !(d[k] > 0.0f)) return best;
         const float inv_area = 1.0f / parent_area;
-        const float ki = opt_.intersect_cost, kt = opt_.traversal_cost;
         const int a = (k + 1) % 3, b = (k + 2) % 3;
         const float cap = d[a] * d[b], rim = d[a] + d[b];
         const EventList& e = ev.axis[k];
@@ -131,8 +133,7 @@ private:
                      --planar_left) {
                     uint32_t l = nl + (planar_left ? planars : 0);
                     uint32_t r = nr + (planar_left ? 0 : planars);
-                    float cost = kt + ki * (pl * float(l) + pr * float(r));
-                    if (l == 0 || r == 0) cost *= 1.0f - opt_.empty_bonus;
+                    const float cost = cost_.split(cost_.kd_step(), pl, l, pr, r);
                     if (cost < best.cost) best = {k, p, bool(planar_left), cost, l, r};
                 }
             }
@@ -276,7 +277,7 @@ private:
                                           std::vector<uint8_t>& side, TaskCredit& credit) {
         if (progress_) progress_->check();
         memory_.check();
-        const float leaf_cost = opt_.intersect_cost * float(ev.count);
+        const float leaf_cost = cost_.leaf(ev.count);
         if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth)
             return make_leaf(ev, box, depth, credit);
         const Split s = find_split(ev, box);
@@ -310,7 +311,7 @@ private:
         split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
 
         auto node = std::make_unique<BuildNode>();
-        node->kind = s.axis;
+        node->kind = kd_kind(s.axis);
         node->split = s.pos;
         node->area = box.area();
         if (depth < spawn_depth_ && ev.count > 4096) {

@@ -1,6 +1,7 @@
 // The flat, compact tree: 8-byte nodes in depth-first order, one shared array
 // of triangle references, and a plane array for general (non-axis) nodes.
 #pragma once
+#include <cassert>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -9,16 +10,38 @@
 
 namespace bsp {
 
-// A node is 8 bytes. The low two bits of `bits` say the kind:
-//   0, 1, 2  kd interior node: `split` is the plane position along that axis,
-//            bits >> 2 the index of the child above the plane;
-//   3        leaf or general node, told apart by bit 2:
-//     leaf     (bit 2 clear): bits >> 3 is the reference count and `first`
-//              the offset into the reference array - or, for a one-triangle
-//              leaf, the triangle itself, which saves one indirection;
-//     general  (bit 2 set): `first` indexes planes[] (n.x, n.y, n.z, d; the
-//              plane n.x = d), bits >> 3 is the index of the child above.
+// What a node is: a kd split along x, y or z, a leaf, or a general split
+// along any plane. The kd kinds' values are their axes.
+enum class NodeKind : uint8_t { X = 0, Y = 1, Z = 2, Leaf = 3, General = 4 };
+
+constexpr bool is_kd(NodeKind k) { return k <= NodeKind::Z; }
+constexpr NodeKind kd_kind(int axis) {
+    assert(axis >= 0 && axis < 3);
+    return NodeKind(axis);
+}
+constexpr int axis_of(NodeKind k) {
+    assert(is_kd(k));
+    return int(k);
+}
+
+// A node is 8 bytes: `split` or `first`, and `bits`, whose low bits say the
+// kind (the tag) and whose high bits hold a child index or a count.
+//   kd       tag 0, 1 or 2 in two bits, the axis: `split` is the plane
+//            position along it, the other 30 bits the index of the child
+//            above the plane;
+//   leaf     tag 3 in three bits (0b011): the other 29 bits are the
+//            reference count and `first` the offset into the reference
+//            array - or, for a one-triangle leaf, the triangle itself, which
+//            saves one indirection;
+//   general  tag 7 in three bits (0b111): `first` indexes planes[] (n.x, n.y,
+//            n.z, d; the plane n.x = d), the other 29 bits the index of the
+//            child above.
+// Kd nodes spend two bits on the tag; leaves and general nodes share the
+// two-bit tag 3 and spend a third bit to tell themselves apart.
 // The child below (n.x < d) always follows its parent.
+// The encoders assert that a child index or count fits (debug, sanitizer and
+// C++ test builds); callers that can overflow check before (kMaxNodes,
+// kMaxLeafCount in the flattening).
 struct Node {
     union {
         float split;
@@ -26,30 +49,56 @@ struct Node {
     };
     uint32_t bits;
 
-    bool is_kd() const { return (bits & 3u) != 3u; }
-    bool is_leaf() const { return (bits & 7u) == 3u; }
-    bool is_general() const { return (bits & 7u) == 7u; }
-    int axis() const { return int(bits & 3u); }
-    uint32_t kd_above() const { return bits >> 2; }
-    uint32_t count() const { return bits >> 3; }
-    uint32_t general_above() const { return bits >> 3; }
+    static constexpr uint32_t kKdTagBits = 2, kKdTagMask = (1u << kKdTagBits) - 1;
+    static constexpr uint32_t kTagBits = 3, kTagMask = (1u << kTagBits) - 1;
+    static constexpr uint32_t kNotKdTag = 3u;  // the two-bit tag of leaves and general nodes
+    static constexpr uint32_t kLeafTag = kNotKdTag, kGeneralTag = kNotKdTag | 4u;
+    static constexpr uint32_t kMaxKdChild = UINT32_MAX >> kKdTagBits;
+    static constexpr uint32_t kMaxPayload = UINT32_MAX >> kTagBits;  // general child, leaf count
 
-    static Node kd(int axis, float split, uint32_t above) {
-        Node n;
+    constexpr bool is_kd() const { return (bits & kKdTagMask) != kNotKdTag; }
+    constexpr bool is_leaf() const { return (bits & kTagMask) == kLeafTag; }
+    constexpr bool is_general() const { return (bits & kTagMask) == kGeneralTag; }
+    constexpr NodeKind kind() const {
+        return is_kd() ? NodeKind(bits & kKdTagMask)
+                       : is_leaf() ? NodeKind::Leaf : NodeKind::General;
+    }
+    constexpr int axis() const {
+        assert(is_kd());
+        return int(bits & kKdTagMask);
+    }
+    constexpr uint32_t kd_above() const {
+        assert(is_kd());
+        return bits >> kKdTagBits;
+    }
+    constexpr uint32_t count() const {
+        assert(is_leaf());
+        return bits >> kTagBits;
+    }
+    constexpr uint32_t general_above() const {
+        assert(is_general());
+        return bits >> kTagBits;
+    }
+
+    static constexpr Node kd(int axis, float split, uint32_t above) {
+        assert(axis >= 0 && axis < 3 && above <= kMaxKdChild);
+        Node n{};
         n.split = split;
-        n.bits = uint32_t(axis) | (above << 2);
+        n.bits = uint32_t(axis) | (above << kKdTagBits);
         return n;
     }
-    static Node general(uint32_t plane, uint32_t above) {
-        Node n;
+    static constexpr Node general(uint32_t plane, uint32_t above) {
+        assert(above <= kMaxPayload);
+        Node n{};
         n.first = plane;
-        n.bits = 7u | (above << 3);
+        n.bits = kGeneralTag | (above << kTagBits);
         return n;
     }
-    static Node leaf(uint32_t first, uint32_t count) {
-        Node n;
+    static constexpr Node leaf(uint32_t first, uint32_t count) {
+        assert(count <= kMaxPayload);
+        Node n{};
         n.first = first;
-        n.bits = 3u | (count << 3);
+        n.bits = kLeafTag | (count << kTagBits);
         return n;
     }
 };
@@ -59,7 +108,9 @@ struct Plane {
     float nx, ny, nz, d;
 };
 
-constexpr uint32_t kMaxNodes = (1u << 29) - 1;
+// Every child index must fit a general node's 29 bits, every count a leaf's.
+constexpr uint32_t kMaxNodes = Node::kMaxPayload;
+constexpr uint32_t kMaxLeafCount = Node::kMaxPayload;
 
 enum class LeafBoxes : int {
     None = 0,      // no culling possible

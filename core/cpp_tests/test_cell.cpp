@@ -1,0 +1,205 @@
+// Cells (cell.hpp): a cube cut by axis and oblique planes, checked against
+// volumes, areas and vertex counts worked out by hand, and the area-by-offset
+// profile of CellProjection against the cells Cell::split actually makes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "cell.hpp"
+
+namespace bsp {
+namespace {
+
+// The cube [0, 2]^3: every coordinate and area below is exact in binary.
+Cell cube() { return Cell::from_box({{0, 0, 0}, {2, 2, 2}}); }
+
+// The volume of a closed convex cell by the divergence theorem: each face
+// adds (n . p) A / 3 for any point p of it.
+double volume(const Cell& c) {
+    double v = 0;
+    for (const Cell::Face& f : c.faces()) v += dot(f.normal, c.points()[f.first]) * f.area / 3.0;
+    return v;
+}
+
+// Corners of the cell: the face points, each counted once (faces share them).
+size_t vertex_count(const Cell& c) {
+    std::vector<Vec3d> seen;
+    for (const Vec3d& p : c.points()) {
+        bool known = false;
+        for (const Vec3d& q : seen) {
+            const Vec3d d = p - q;
+            known = known || dot(d, d) < 1e-20;
+        }
+        if (!known) seen.push_back(p);
+    }
+    return seen.size();
+}
+
+// The area of the face lying in the cut (outward normal n), or 0.
+double face_area_along(const Cell& c, const Vec3d& n) {
+    for (const Cell::Face& f : c.faces())
+        if (dot(f.normal, n) > 1.0 - 1e-12) return f.area;
+    return 0.0;
+}
+
+Vec3d unit(double x, double y, double z) {
+    const double l = std::sqrt(x * x + y * y + z * z);
+    return {x / l, y / l, z / l};
+}
+
+TEST(Cell, CubeFromBox) {
+    const Cell c = cube();
+    EXPECT_EQ(c.faces().size(), 6u);
+    EXPECT_EQ(vertex_count(c), 8u);
+    EXPECT_EQ(c.area(), 24.0);
+    EXPECT_DOUBLE_EQ(volume(c), 8.0);  // the division by 3 rounds
+    double lo, hi;
+    c.extent(unit(1, 1, 1), lo, hi);
+    EXPECT_NEAR(lo, 0.0, 1e-15);
+    EXPECT_NEAR(hi, 6.0 / std::sqrt(3.0), 1e-14);
+}
+
+TEST(Cell, AxisCutMakesTwoBoxes) {
+    Cell below, above;
+    cube().split({1, 0, 0}, 0.5, below, above);
+    // 0.5 x 2 x 2 and 1.5 x 2 x 2: exact in binary, and so are their areas.
+    EXPECT_DOUBLE_EQ(volume(below), 2.0);
+    EXPECT_DOUBLE_EQ(volume(above), 6.0);
+    EXPECT_EQ(below.area(), 12.0);
+    EXPECT_EQ(above.area(), 20.0);
+    EXPECT_EQ(below.faces().size(), 6u);
+    EXPECT_EQ(above.faces().size(), 6u);
+    EXPECT_EQ(vertex_count(below), 8u);
+    EXPECT_EQ(vertex_count(above), 8u);
+    // The parts' surfaces are the whole's plus the 2 x 2 cut, once per side.
+    EXPECT_EQ(face_area_along(below, {1, 0, 0}), 4.0);
+    EXPECT_EQ(face_area_along(above, {-1, 0, 0}), 4.0);
+}
+
+TEST(Cell, DiagonalCutThroughCentreMakesHexagon) {
+    // x + y + z = 3 through the centre: two congruent halves whose cap is a
+    // regular hexagon of side sqrt(2), area 3 sqrt(3). Each half keeps four
+    // corners of the cube (coordinate sums 0, 2, 2, 2 or 4, 4, 4, 6) and all
+    // six faces in part, plus the cap.
+    const Vec3d n = unit(1, 1, 1);
+    Cell below, above;
+    cube().split(n, std::sqrt(3.0), below, above);
+    const double cap = 3.0 * std::sqrt(3.0);
+    for (const Cell* half : {&below, &above}) {
+        EXPECT_NEAR(volume(*half), 4.0, 1e-12);
+        EXPECT_NEAR(half->area(), 12.0 + cap, 1e-12);
+        EXPECT_EQ(half->faces().size(), 7u);
+        EXPECT_EQ(vertex_count(*half), 10u);
+    }
+    EXPECT_NEAR(face_area_along(below, n), cap, 1e-12);
+    EXPECT_NEAR(face_area_along(above, n * -1.0), cap, 1e-12);
+}
+
+TEST(Cell, CornerCutMakesTetrahedron) {
+    // x + y + z = 1 cuts off the corner at the origin: a right tetrahedron
+    // with unit legs (volume 1/6, three right triangles of area 1/2 and an
+    // equilateral cap of side sqrt(2), area sqrt(3)/2).
+    Cell below, above;
+    cube().split(unit(1, 1, 1), 1.0 / std::sqrt(3.0), below, above);
+    EXPECT_NEAR(volume(below), 1.0 / 6.0, 1e-14);
+    EXPECT_NEAR(below.area(), 1.5 + std::sqrt(3.0) / 2.0, 1e-14);
+    EXPECT_EQ(below.faces().size(), 4u);
+    EXPECT_EQ(vertex_count(below), 4u);
+    EXPECT_NEAR(volume(above), 8.0 - 1.0 / 6.0, 1e-12);
+    EXPECT_NEAR(above.area(), 24.0 - 1.5 + std::sqrt(3.0) / 2.0, 1e-12);
+    EXPECT_EQ(above.faces().size(), 7u);
+    EXPECT_EQ(vertex_count(above), 10u);  // 7 corners and the cut's 3
+}
+
+TEST(Cell, PlaneMissingTheCellLeavesItWhole) {
+    Cell below, above;
+    cube().split({0, 0, 1}, 5.0, below, above);
+    EXPECT_TRUE(above.empty());
+    EXPECT_EQ(below.area(), 24.0);
+    EXPECT_DOUBLE_EQ(volume(below), 8.0);
+}
+
+TEST(Cell, RandomCutsConserveVolumeAndArea) {
+    // Repeated oblique cuts, each of the larger part of the last: the parts'
+    // volumes add up to the whole, and their areas to the whole plus the cap
+    // on both sides. (Keeping the larger part keeps the cell's size near the
+    // coordinates', whose rounding sets the error.)
+    std::mt19937 gen(7);
+    std::uniform_real_distribution<double> coord(-1.0, 1.0), share(0.25, 0.75);
+    Cell c = cube();
+    for (int i = 0; i < 20; ++i) {
+        const Vec3d n = unit(coord(gen), coord(gen), coord(gen));
+        double lo, hi;
+        c.extent(n, lo, hi);
+        const double d = lo + share(gen) * (hi - lo);
+        Cell below, above;
+        c.split(n, d, below, above);
+        ASSERT_FALSE(below.empty());
+        ASSERT_FALSE(above.empty());
+        const double cap = face_area_along(below, n);
+        EXPECT_GT(cap, 0.0);
+        EXPECT_NEAR(face_area_along(above, n * -1.0), cap, 1e-12 * 24.0);
+        EXPECT_NEAR(volume(below) + volume(above), volume(c), 1e-12 * 8.0);
+        EXPECT_NEAR(below.area() + above.area(), c.area() + 2.0 * cap, 1e-12 * 24.0);
+        // Every point of each part lies on its side of the plane.
+        for (const Vec3d& p : below.points()) EXPECT_LE(dot(n, p), d + 1e-12);
+        for (const Vec3d& p : above.points()) EXPECT_GE(dot(n, p), d - 1e-12);
+        c = volume(below) > volume(above) ? below : above;
+    }
+}
+
+// The profile the sweep prices planes with: the areas of the parts below and
+// above u.x = t, caps included, without cutting the cell.
+TEST(CellProjection, ProfileOfCubeAlongAxis) {
+    const Cell c = cube();
+    const CellProjection cp(c, {1, 0, 0});
+    EXPECT_EQ(cp.lo(), 0.0);
+    EXPECT_EQ(cp.hi(), 2.0);
+    for (double t : {0.25, 0.5, 1.0, 1.5}) {
+        double below, above;
+        cp.areas_at(t, below, above);
+        // A t x 2 x 2 box below, (2 - t) x 2 x 2 above.
+        EXPECT_NEAR(below, 8.0 + 8.0 * t, 1e-13) << "t = " << t;
+        EXPECT_NEAR(above, 8.0 + 8.0 * (2.0 - t), 1e-13) << "t = " << t;
+    }
+}
+
+TEST(CellProjection, ProfileMatchesTheCutCells) {
+    // Along random directions of a randomly cut cell, areas_at() gives the
+    // areas of the parts split() makes, and the tabulated eval() the same.
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<double> coord(-1.0, 1.0), share(0.02, 0.98);
+    Cell c = cube();
+    for (int i = 0; i < 3; ++i) {
+        Cell below, above;
+        const Vec3d n = unit(coord(gen), coord(gen), coord(gen));
+        double lo, hi;
+        c.extent(n, lo, hi);
+        c.split(n, 0.5 * (lo + hi), below, above);
+        c = below;
+    }
+    for (int i = 0; i < 10; ++i) {
+        const Vec3d u = unit(coord(gen), coord(gen), coord(gen));
+        CellProjection cp(c, u);
+        CellProjection table(c, u);
+        table.tabulate();
+        for (int j = 0; j < 20; ++j) {
+            const double t = cp.lo() + share(gen) * (cp.hi() - cp.lo());
+            Cell below, above;
+            c.split(u, t, below, above);
+            double b, a, tb, ta;
+            cp.areas_at(t, b, a);
+            table.eval(t, tb, ta);
+            const double tol = 1e-9 * c.area();
+            EXPECT_NEAR(b, below.area(), tol);
+            EXPECT_NEAR(a, above.area(), tol);
+            EXPECT_NEAR(tb, b, tol);
+            EXPECT_NEAR(ta, a, tol);
+        }
+    }
+}
+
+}  // namespace
+}  // namespace bsp
