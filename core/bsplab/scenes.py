@@ -22,6 +22,10 @@ from .camera import Camera
 from .io import write_ply
 
 NAMES = ("room", "spheres", "fan")
+# What a scene name may also be: a mesh file (read by bsplab.io) or a .blend
+# (exported by a Blender process, camera included).
+MESH_SUFFIXES = (".ply", ".obj")
+FILE_SUFFIXES = MESH_SUFFIXES + (".blend",)
 
 Mesh = tuple[np.ndarray, np.ndarray]  # (vertices (V,3) float64, faces (F,3) int64)
 
@@ -323,3 +327,52 @@ def main_write(out_dir: Union[str, Path]) -> list[Path]:
         write_ply(path, *generate_mesh(name))
         paths.append(path)
     return paths
+
+
+# -- loading any scene by name ---------------------------------------------------
+
+
+def looks_like_file(name: str) -> bool:
+    """A scene name that names a file rather than a generated or shared scene."""
+    return Path(name).suffix.lower() in FILE_SUFFIXES or "/" in name
+
+
+def resolve(name: str) -> Union[str, Path]:
+    """What `name` stands for: a generated scene's name, or a file's path (a
+    file as given, or `<name>.ply` in the shared scenes folder); raises
+    FileNotFoundError/ValueError saying which of these it is not."""
+    from . import workloads
+    if name in NAMES + PROBE_NAMES:
+        return name
+    path = Path(name)
+    if looks_like_file(name) or path.exists():
+        if path.is_dir():
+            raise ValueError(f"scene file {name} is a directory, not a mesh file")
+        if not path.is_file():
+            raise FileNotFoundError(f"scene file {name} does not exist")
+        if path.suffix.lower() not in FILE_SUFFIXES:
+            raise ValueError(f"scene file {name}: expected {', '.join(FILE_SUFFIXES)}")
+        return path
+    shared = workloads.shared_scenes_dir()
+    if shared is None or not (shared / f"{name}.ply").is_file():
+        raise FileNotFoundError(
+            f"no scene {name!r}: not a generated scene ({', '.join(NAMES)}), a file, or a "
+            f"mesh in the shared scenes folder ({shared or 'not found'})")
+    return shared / f"{name}.ply"
+
+
+def load(name: str) -> np.ndarray:
+    """Triangles `(N,3,3)` float32 of any scene name (see `load_with_camera`)."""
+    return load_with_camera(name)[0]
+
+
+def load_with_camera(name: str) -> tuple[np.ndarray, Camera | None]:
+    """Triangles and the scene's own camera (None when it has none) of a
+    generated scene, a shared mesh's name, a .ply/.obj file or a .blend file."""
+    from . import io
+    where = resolve(name)
+    if isinstance(where, str):
+        return generate(where), default_camera(where) if where in NAMES else None
+    if where.suffix.lower() == ".blend":
+        return io.load_blend(where)
+    return io.load_mesh(where), None
