@@ -28,14 +28,14 @@ class _Bar:
         if tqdm is not None:
             self.bar = tqdm(total=total, initial=done, unit="cell", dynamic_ncols=True,
                             bar_format="{n_fmt}/{total_fmt} cells |{bar}| "
-                                       "[{elapsed}<{remaining}] {postfix}")
+                                       "[{elapsed}<{remaining}] {desc}")
         self.update(0, note)
 
     def update(self, step: int, label: str) -> None:
         if self.bar is None:
             print(label, file=sys.stderr, flush=True)
             return
-        self.bar.set_postfix_str(label, refresh=False)
+        self.bar.set_description_str(label, refresh=False)
         self.bar.update(step)
         self.bar.refresh()
 
