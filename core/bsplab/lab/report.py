@@ -257,12 +257,36 @@ def markdown(rows: list[dict], title: str = "Experiment results", meta: dict | N
 # The benchmarks' documents
 
 PAIRED = ("Every time is measured with the lab's one protocol, paired rounds "
-          "(`bsplab.lab.timing`): in each of the spec's repetitions the tree, the scene's kd-tree and Embree (and, "
-          "for culling, the same tree with culling on) trace the same rays on one thread, "
+          "(`bsplab.lab.timing`): in each of the spec's repetitions the tree, the scene's "
+          "kd-tree and Embree (and, for culling, the same tree with culling on) trace the same rays on one thread, "
           "one right after the other in a rotating order; a ratio is the median over the "
           "repetitions of the per-repetition ratio, a time or Mray/s the median time. "
           "Mray/s drift with the machine's load; the ratios are what to compare. Steps "
           "and tests per ray are exact counters.")
+
+
+# What the columns of each benchmark's tables are.
+BENCH_COLUMNS = ("`× Embree` is our time over Embree's (below 1 is faster than Embree); "
+                 "`build × Embree` our build time over Embree's (embreex's BVH build, "
+                 "measured once per cell). `embreex` traces on one thread, and so do we here.")
+
+FAMILY_COLUMNS = ("`time % kd` is the tree's time over the kd-tree's traced beside it "
+                  "(below 100 is faster than kd), min–max over the repetitions; `× Embree` "
+                  "over Embree's. `build × kd` is the build time over the kd build's. "
+                  "`tests % kd` compares the triangle tests per ray. AO rays: one "
+                  "cosine-weighted ray from every primary hit, reaching a tenth of the "
+                  "scene box's diagonal. `wrong hits` counts rays whose answer differs "
+                  "from Embree's beyond ties and grazing edges.")
+
+CULL_COLUMNS = ("Each tree is traced with culling off and on in the same rounds. `fewer "
+                "tests` is the share of ray-triangle tests culling removes; `time on/off` "
+                "(median of the paired ratios) below 1 means culling pays. The source "
+                "thesis (seed 002) reports 80–90 % fewer tests and up to 2x faster "
+                "tracing on kd-trees whose leaves hold many triangles; our default SAH "
+                "trees hold 2–5 per leaf and a mailbox already skips repeats, so the "
+                "`intersect_cost 0.3` rows (larger leaves) are the comparable ones. "
+                "`answers differ` counts rays whose hit distance changed with culling "
+                "on (it must be 0).")
 
 
 def _header(title: str, command: str, meta: dict | None, text: str) -> list[str]:
@@ -279,10 +303,7 @@ def _mrays(g: Group, column: str) -> float:
 def benchmark_markdown(rows: list[dict], command: str, meta: dict | None = None) -> str:
     """docs/benchmark.md: build and trace of each method against Embree."""
     res = Results(rows)
-    out = _header("Benchmark: BSP Lab trees vs Embree", command, meta,
-                  "`× Embree` is our time over Embree's (below 1 is faster than Embree); "
-                  "`build × Embree` our build time over Embree's (embreex's BVH build, "
-                  "measured once per cell). `embreex` traces on one thread, and so do we here.")
+    out = _header("Benchmark: BSP Lab trees vs Embree", command, meta, BENCH_COLUMNS)
     out += ["## Build", "",
             "| scene | triangles | method | build s | build × Embree | nodes | leaves | "
             "depth | refs/tri | tris/leaf | MiB | SAH |",
@@ -333,13 +354,7 @@ def family_markdown(rows: list[dict], command: str, meta: dict | None = None) ->
     """docs/bsp_benchmark.md: every method and K against kd and Embree."""
     res = Results(rows)
     out = _header("Benchmark: the BSP family against kd and Embree", command, meta,
-                  "`time % kd` is the tree's time over the kd-tree's traced beside it "
-                  "(below 100 is faster than kd), min–max over the repetitions; `× Embree` "
-                  "over Embree's. `build × kd` is the build time over the kd build's. "
-                  "`tests % kd` compares the triangle tests per ray. AO rays: one "
-                  "cosine-weighted ray from every primary hit, reaching a tenth of the "
-                  "scene box's diagonal. `wrong hits` counts rays whose answer differs "
-                  "from Embree's beyond ties and grazing edges.")
+                  FAMILY_COLUMNS)
     out += summary_tables(res)
     out += ["## Kd and BSP nodes (the thesis's table 5.10 shape)", ""] + node_tables(res)
     return "\n".join(out) + "\n"
@@ -350,15 +365,7 @@ def cull_markdown(rows: list[dict], command: str, meta: dict | None = None) -> s
     from .spec import variant_label
     res = Results(rows)
     out = _header("Benchmark: leaf culling with the ray segment's box", command, meta,
-                  "Each tree is traced with culling off and on in the same rounds. `fewer "
-                  "tests` is the share of ray-triangle tests culling removes; `time on/off` "
-                  "(median of the paired ratios) below 1 means culling pays. The source "
-                  "thesis (seed 002) reports 80–90 % fewer tests and up to 2x faster "
-                  "tracing on kd-trees whose leaves hold many triangles; our default SAH "
-                  "trees hold 2–5 per leaf and a mailbox already skips repeats, so the "
-                  "`intersect_cost 0.3` rows (larger leaves) are the comparable ones. "
-                  "`answers differ` counts rays whose hit distance changed with culling "
-                  "on (it must be 0).")
+                  CULL_COLUMNS)
     cols = [w for w in ("primary", "ao") if w in res.workloads] or res.workloads
     head = "| scene | method | K | options | box MiB |"
     rule = "|---|---|---:|---|---:|"
