@@ -129,8 +129,9 @@ def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
     rays = make_rays(spec, data, embree)
     tree = build(tris, method=cell.method, threads=spec.build_threads, progress=progress,
                  **build_options(spec, cell.method, cell.k, cell.seed, cell.variant))
-    kd = tree if cell.method == "kd" and not cell.variant else kd_reference(spec, cell.scene,
-                                                                            data)
+    # A kd cell is its own reference, unless a variant made it another kd-tree.
+    own_reference = cell.method == "kd" and not cell.variant
+    kd = tree if own_reference else kd_reference(spec, cell.scene, data)
 
     def check_cancel():
         if progress is not None and progress.cancelled:
