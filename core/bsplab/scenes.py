@@ -337,22 +337,10 @@ def looks_like_file(name: str) -> bool:
     return Path(name).suffix.lower() in FILE_SUFFIXES or "/" in name
 
 
-def resolve(name: str) -> Union[str, Path]:
-    """What `name` stands for: a generated scene's name, or a file's path (a
-    file as given, or `<name>.ply` in the shared scenes folder); raises
-    FileNotFoundError/ValueError saying which of these it is not."""
+def shared_path(name: str) -> Path:
+    """`<name>.ply` in the shared scenes folder; FileNotFoundError naming what
+    else `name` could have been."""
     from . import workloads
-    if name in NAMES + PROBE_NAMES:
-        return name
-    path = Path(name)
-    if looks_like_file(name) or path.exists():
-        if path.is_dir():
-            raise ValueError(f"scene file {name} is a directory, not a mesh file")
-        if not path.is_file():
-            raise FileNotFoundError(f"scene file {name} does not exist")
-        if path.suffix.lower() not in FILE_SUFFIXES:
-            raise ValueError(f"scene file {name}: expected {', '.join(FILE_SUFFIXES)}")
-        return path
     shared = workloads.shared_scenes_dir()
     if shared is None or not (shared / f"{name}.ply").is_file():
         raise FileNotFoundError(
@@ -368,11 +356,14 @@ def load(name: str) -> np.ndarray:
 
 def load_with_camera(name: str) -> tuple[np.ndarray, Camera | None]:
     """Triangles and the scene's own camera (None when it has none) of a
-    generated scene, a shared mesh's name, a .ply/.obj file or a .blend file."""
+    generated scene, an existing .ply/.obj/.blend file (bsplab.io says what
+    is wrong with a file it cannot read), or a shared mesh's name."""
     from . import io
-    where = resolve(name)
-    if isinstance(where, str):
-        return generate(where), default_camera(where) if where in NAMES else None
-    if where.suffix.lower() == ".blend":
-        return io.load_blend(where)
-    return io.load_mesh(where), None
+    if name in NAMES + PROBE_NAMES:
+        return generate(name), default_camera(name) if name in NAMES else None
+    path = Path(name)
+    if not path.exists():
+        path = shared_path(name)
+    if path.suffix.lower() == ".blend":
+        return io.load_blend(path)
+    return io.load_mesh(path), None

@@ -141,7 +141,7 @@ def test_scenes_load_generated_files_and_refuse_unknown_names(tmp_path):
     assert from_file.shape == scenes.generate("fan").shape and cam is None
     with pytest.raises(FileNotFoundError, match="no scene 'nowhere'"):
         scenes.load("nowhere")
-    with pytest.raises(FileNotFoundError, match="scene file .*missing.obj does not exist"):
+    with pytest.raises(FileNotFoundError, match="no scene '.*missing.obj'"):
         scenes.load(str(tmp_path / "missing.obj"))
     with pytest.raises(ValueError, match="is a directory"):
         scenes.load(str(tmp_path))
@@ -262,7 +262,8 @@ def test_bench_cull_pairs_culling_on_with_off(tmp_path):
     assert spec.cull and len(spec.variants) == 2 and len(spec.method_variants["kd"]) == 4
     out = tmp_path / "cull.md"
     # The shipped spec's cells, on fewer rays: every method, both box kinds.
-    assert benchmarks.bench_cull(out, ["room"], side=10, repeats=1) == 0
+    # Three rounds: the median survives one preempted trace (these take 0.1 ms).
+    assert benchmarks.bench_cull(out, ["room"], side=16, repeats=3) == 0
     rows = _table(out.read_text(), "# Benchmark")
     methods = {r[1] for r in rows}
     assert methods == set(spec.methods)

@@ -12,11 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import scenes, workloads
+from .. import workloads
 from ..method_table import METHODS
 from . import report
 from .runner import run
-from .spec import Spec, load_spec
+from .timing import parse_times
+from .spec import Spec, SpecError, check_scene, load_spec
 
 SPECS = Path(__file__).resolve().parent.parent / "specs"
 
@@ -30,9 +31,9 @@ def available_scenes(names: list[str], log=print) -> list[str]:
     out = []
     for name in names:
         try:
-            scenes.resolve(name)
+            check_scene(name)
             out.append(name)
-        except (ValueError, FileNotFoundError):
+        except SpecError:
             log(f"skipped scene {name}: not here (shared scenes folder: "
                 f"{workloads.shared_scenes_dir() or 'not found'})")
     return out
@@ -142,7 +143,7 @@ def fit_costs(rows: list[dict]) -> dict:
     for r in rows:
         gen = float(r["general_steps"])
         features.append([1.0, float(r["steps"]) - gen, gen, float(r["tests"])])
-        times.append(float(np.median([float(x) for x in r["trace_s"].split()])) / int(r["rays"]))
+        times.append(float(np.median(parse_times(r["trace_s"]))) / int(r["rays"]))
     A, y = np.array(features), np.array(times)
     if len(y) < 4:
         raise ValueError(f"calibrate needs at least 4 rows to fit 4 costs, got {len(y)}")

@@ -155,8 +155,9 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
                         "mesh name, or a .ply/.obj/.blend file)")
     _no_repeats(scenes, "scenes")
     if base_dir is not None:  # relative files are relative to the spec file
-        scenes = [str(base_dir / s) if scene_names.looks_like_file(s) and not Path(s).is_absolute()
-                  else s for s in scenes]
+        scenes = [str(base_dir / s)
+                  if scene_names.looks_like_file(s) and not Path(s).is_absolute() else s
+                  for s in scenes]
     if check_files:
         for s in scenes:
             check_scene(s)
@@ -313,8 +314,20 @@ def load_spec(path, **overrides) -> Spec:
 
 
 def check_scene(scene: str) -> None:
-    """SpecError unless `scene` names a generated scene, a shared mesh or a file."""
+    """SpecError unless `scene` names a generated scene, a mesh file or a shared
+    mesh (checked before the run, so the messages name the spec's mistake)."""
+    if scene in scene_names.NAMES + scene_names.PROBE_NAMES:
+        return
+    if scene_names.looks_like_file(scene):
+        p = Path(scene)
+        if p.is_dir():
+            raise SpecError(f"scene file {scene} is a directory, not a mesh file")
+        if not p.is_file():
+            raise SpecError(f"scene file {scene} does not exist")
+        if p.suffix.lower() not in scene_names.FILE_SUFFIXES:
+            raise SpecError(f"scene file {scene}: expected .ply, .obj or .blend")
+        return
     try:
-        scene_names.resolve(scene)
-    except (ValueError, FileNotFoundError) as e:
+        scene_names.shared_path(scene)
+    except FileNotFoundError as e:
         raise SpecError(str(e)) from None
