@@ -258,9 +258,10 @@ def markdown(rows: list[dict], title: str = "Experiment results", meta: dict | N
 
 PAIRED = ("Every time is measured with the lab's one protocol, paired rounds "
           "(`bsplab.lab.timing`): in each of the spec's repetitions the tree, the scene's "
-          "kd-tree and Embree (and, for culling, the same tree with culling on) trace the same rays on one thread, "
-          "one right after the other in a rotating order; a ratio is the median over the "
-          "repetitions of the per-repetition ratio, a time or Mray/s the median time. "
+          "kd-tree and Embree (and, for culling, the same tree with culling on) trace the "
+          "same rays on one thread, one right after the other in a rotating order; a "
+          "ratio is the median over the repetitions of the per-repetition ratio, a time or "
+          "Mray/s the median time. "
           "Mray/s drift with the machine's load; the ratios are what to compare. Steps "
           "and tests per ray are exact counters.")
 
