@@ -126,7 +126,8 @@ def bench_cull(out: Path | None, scene_names=None, side=None, repeats=None) -> i
 
 def calibrate(scene_names=None, repeats=None, out: Path | None = None) -> dict:
     """Fits the SAH costs to this machine: the same rays through trees of
-    different shapes, the median time per ray fitted as
+    different shapes, the time per ray (paired with the kd-tree's, see
+    `_paired_seconds_per_ray`) fitted as
 
         seconds = a + K_kd * kd_steps + K_gen * general_steps + K_i * tests
 
@@ -137,13 +138,28 @@ def calibrate(scene_names=None, repeats=None, out: Path | None = None) -> dict:
     return fit_costs(rows)
 
 
+def _paired_seconds_per_ray(rows: list[dict]) -> list[float]:
+    """Each row's time per ray, drift removed: the median of its per-round
+    ratios to the scene's kd-tree (traced in the same rounds) times that
+    kd-tree's median time over the whole run on the same workload."""
+    kd_times: dict[tuple, list[float]] = {}
+    for r in rows:
+        kd_times.setdefault((r["scene"], r["workload"]), []).extend(parse_times(r["kd_s"]))
+    out = []
+    for r in rows:
+        ratio = np.median(np.divide(parse_times(r["trace_s"]), parse_times(r["kd_s"])))
+        out.append(float(ratio * np.median(kd_times[(r["scene"], r["workload"])]))
+                   / int(r["rays"]))
+    return out
+
+
 def fit_costs(rows: list[dict]) -> dict:
     """The least-squares fit of `calibrate` over result rows."""
-    features, times = [], []
+    features = []
     for r in rows:
         gen = float(r["general_steps"])
         features.append([1.0, float(r["steps"]) - gen, gen, float(r["tests"])])
-        times.append(float(np.median(parse_times(r["trace_s"]))) / int(r["rays"]))
+    times = _paired_seconds_per_ray(rows)
     A, y = np.array(features), np.array(times)
     if len(y) < 4:
         raise ValueError(f"calibrate needs at least 4 rows to fit 4 costs, got {len(y)}")
