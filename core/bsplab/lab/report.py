@@ -356,7 +356,7 @@ def family_markdown(rows: list[dict], command: str, meta: dict | None = None) ->
     res = Results(rows)
     out = _header("Benchmark: the BSP family against kd and Embree", command, meta,
                   FAMILY_COLUMNS)
-    out += summary_tables(res)
+    out += ["## Per scene and workload", ""] + summary_tables(res)
     out += ["## Kd and BSP nodes (the thesis's table 5.10 shape)", ""] + node_tables(res)
     return "\n".join(out) + "\n"
 
