@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 # against what the add-on meets.
 DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4" \
           "matplotlib>=3.7" "dask[distributed]>=2024.1" "hypothesis>=6.100" \
-          "trimesh>=4" "pillow>=9"
+          "trimesh>=4" "pillow>=9" "tqdm>=4.66"
 
 .PHONY: all venv core demo demo-core test test-cpp test-core test-sanitize test-tsan test-blender bench bench-family bench-cull results results-quick addon scenes clean
 

@@ -1,16 +1,16 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The "Sweep K" experiment on the current scene.
 
-The core's experiment runner (`bsplab.experiment`) runs in this process on
-the scene's own triangles and camera: every chosen method at every K of the
+The core lab's sweep (`bsplab.lab.sweep_k`) runs in this process on the
+scene's own triangles and camera: every chosen method at every K of the
 range, each tree traced `repetitions` times beside Embree (where Embree can
 run here), kd always included as the reference. The result is a small table
 (render time as % of kd, tests per ray) and a plot drawn into an image
 block. Like Build & Render, it reads bpy on the main thread only.
 """
 
+import importlib
 import json
-import tempfile
 from dataclasses import dataclass
 
 import numpy as np
@@ -102,26 +102,15 @@ class SweepJob(jobs.WorkerJob):
             self.progress.cancel()
 
     def _compute(self):
-        import importlib
         core, inp = self.core, self.input
-        experiment = importlib.import_module(core.__name__ + ".experiment")
-        known = core.methods()
-        ks = plan(inp.methods, known, inp.k_min, inp.k_max)
-        scene_key = "blender:" + inp.scene_name
-        spec = experiment.make_spec({
-            "name": "sweep_k", "scenes": [scene_key], "methods": inp.methods,
-            "ks": [inp.k_min], "method_ks": {m: k for m, k in ks.items() if k != [None]},
-            "repetitions": inp.repetitions, "workloads": [inp.workload],
-            "width": inp.camera.width, "height": inp.camera.height, "executor": "inline",
-        }, check_files=False)
-        self._total = len(experiment.cells(spec))
-        cam = core.Camera(**inp.camera.kwargs())
-        data = {scene_key: experiment.SceneData(inp.triangles, cam)}
-        with tempfile.TemporaryDirectory() as tmp:
-            rows = experiment.run(spec, tmp + "/sweep", fresh=True, scene_data=data,
-                                  progress=self.progress, on_progress=self._on_progress,
-                                  quiet=True)
-        table = summarise(core, rows, inp.methods)
+        lab = importlib.import_module(core.__name__ + ".lab")  # its one public entry
+        ks = plan(inp.methods, core.methods(), inp.k_min, inp.k_max)
+        rows = lab.sweep_k(inp.triangles, core.Camera(**inp.camera.kwargs()), inp.methods, ks,
+                           repetitions=inp.repetitions, workload=inp.workload,
+                           width=inp.camera.width, height=inp.camera.height,
+                           scene_name=inp.scene_name, progress=self.progress,
+                           on_progress=self._on_progress)
+        table = summarise(lab, rows, inp.methods)
         table["scene"] = {"triangles": len(inp.triangles), "rays": int(rows[0]["rays"]),
                           "workload": inp.workload, "repetitions": inp.repetitions}
         return {"table": table, "plot": plot(table, *PLOT_SIZE)}
@@ -134,30 +123,12 @@ class SweepJob(jobs.WorkerJob):
         return min(1.0, (self._done + 0.9 * self.progress.value) / max(1, self._total))
 
 
-def summarise(core, rows, methods):
-    """Per method and K: median render time as % of kd, its spread, tests and steps."""
-    import importlib
-    report = importlib.import_module(core.__name__ + ".report")
-    res = report.Results(rows)
-    scene, workload = res.scenes[0], res.workloads[0]
-    out = {"methods": [], "embree": all(r["embree_s"] for r in rows)}
-    kd = res.kd(scene, workload)
-    for i, m in enumerate(methods):
-        points = []
-        for k in res.ks(m):
-            g = res.get(scene, workload, m, k)
-            pct = res.pct_of_kd(g)
-            points.append({
-                "k": k, "pct_kd": float(np.median(pct)), "pct_min": float(pct.min()),
-                "pct_max": float(pct.max()), "tests": g.mean("tests"), "steps": g.mean("steps"),
-                "build_s": g.mean("build_s"),
-                "x_embree": res.x_embree(g),
-                "wrong": sum(int(r["unexplained"]) for r in g.rows if r["unexplained"] != ""),
-            })
-        out["methods"].append({"name": m, "colour": COLOURS[i % len(COLOURS)][0],
-                               "points": points})
-    out["kd_x_embree"] = res.x_embree(kd)
-    return out
+def summarise(lab, rows, methods):
+    """The lab's table of the sweep, each method with its plot colour."""
+    table = lab.sweep_table(rows, methods)
+    for i, m in enumerate(table["methods"]):
+        m["colour"] = COLOURS[i % len(COLOURS)][0]
+    return table
 
 
 # -----------------------------------------------------------------------------

@@ -118,7 +118,7 @@ def test_experiment_reads_a_blend_file(addon, core, test_scene, tmp_path, monkey
     """The headless runner takes a .blend: Blender (this Blender binary, or a
     Python with this bpy module) exports its evaluated triangles and camera
     in another process with the add-on's own extraction."""
-    from bsplab import experiment, io
+    from bsplab import io, lab
     path = tmp_path / "scene.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     blender = sys.executable if in_bpy_module() else bpy.app.binary_path
@@ -128,10 +128,10 @@ def test_experiment_reads_a_blend_file(addon, core, test_scene, tmp_path, monkey
     tris, cam = io.load_blend(path)
     assert len(tris) == utils.EXPECTED_TRIANGLES
     assert cam is not None and cam.lens == pytest.approx(test_scene["camera"].data.lens)
-    spec = experiment.make_spec({"scenes": [str(path)], "methods": ["kd"], "repetitions": 1,
+    spec = lab.make_spec({"scenes": [str(path)], "methods": ["kd"], "repetitions": 1,
                                  "width": 16, "height": 12, "workloads": ["primary"],
                                  "executor": "inline"})
-    rows = experiment.run(spec, tmp_path / "res", quiet=True)
+    rows = lab.run(spec, tmp_path / "res", quiet=True)
     assert len(rows) == 1 and int(rows[0]["hits"]) > 0
     assert int(rows[0]["triangles"]) == utils.EXPECTED_TRIANGLES
     with pytest.raises(RuntimeError, match="could not export"):

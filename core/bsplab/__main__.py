@@ -40,13 +40,12 @@ def _under_a_directory(p: Path, flag: str) -> None:
 
 def cmd_demo(args) -> int:
     import bsplab
-    from bsplab import bench, oracle, scenes, workloads
+    from bsplab import oracle, scenes, workloads
     from bsplab.image import write_png
 
     out = output_file(args.out, "--out", "demo.png")
-    tris = bench.load(args.scene)
-    camera = (scenes.default_camera(args.scene) if args.scene in scenes.NAMES
-              else workloads.framing_camera(tris))
+    tris, camera = scenes.load_with_camera(args.scene)
+    camera = camera or workloads.framing_camera(tris)
     print(f"scene {args.scene}: {len(tris):,} triangles; method {args.method}")
     progress = bsplab.Progress()
     tree = bsplab.build(tris, method=args.method, progress=progress)
@@ -97,63 +96,43 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def _doc(args, example: str) -> Path | None:
+    """The benchmark's --out, refused up front when it cannot be written."""
+    if not args.out:
+        return None
+    out = output_file(args.out, "--out", example)
+    for suffix in (".csv", ".json"):  # its rows: docs/data/<name>.csv and .json
+        output_file((out.parent / "data" / out.stem).with_suffix(suffix), "--out's rows",
+                    out.stem + suffix)
+    return out
+
+
 def cmd_bench(args) -> int:
-    from bsplab import bench
-    if args.out:
-        output_file(args.out, "--out", "benchmark.md")
-    scenes_ = args.scenes or bench.default_scenes()
-    methods = args.methods or bench.default_methods()
-    rows = bench.run(scenes_, methods, primary_side=args.side, random_count=args.rays,
-                     repeats=args.repeats)
-    if args.out:
-        command = "python -m bsplab " + " ".join(sys.argv[1:])
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(bench.markdown(rows, command))
-        print(f"written {args.out}")
-    bad = [r for r in rows for x in r.results.values() if x["unexplained"]]
-    return 1 if bad else 0
+    from bsplab.lab import benchmarks
+    return benchmarks.bench(_doc(args, "benchmark.md"), args.scenes, args.methods,
+                            side=args.side, rays=args.rays, repeats=args.repeats)
 
 
 def cmd_family(args) -> int:
-    from bsplab import bench_family
-    from bsplab.method_table import METHODS
-    if args.out:
-        output_file(args.out, "--out", "bsp_benchmark.md")
-        output_file(Path(args.out).with_suffix(".csv"), "--out's .csv", "bsp_benchmark.csv")
+    from bsplab.lab import benchmarks
     if not args.ks and args.kmin > args.kmax:
         raise ValueError(f"--kmin {args.kmin} is more than --kmax {args.kmax}: no K to run")
     ks = args.ks or list(range(args.kmin, args.kmax + 1))
-    methods = args.methods or [m for m in METHODS if m != "kd"]
-    rows = bench_family.run(args.scenes, methods, ks, repeats=args.repeats, side=args.side)
-    command = "python -m bsplab " + " ".join(sys.argv[1:])
-    if args.out:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(bench_family.markdown(rows, command))
-        bench_family.write_csv(rows, out.with_suffix(".csv"))
-        print(f"written {out} and {out.with_suffix('.csv')}")
-    wrong = sum(r["primary_unexplained"] + r["ao_unexplained"] for r in rows)
-    return 1 if wrong else 0
+    return benchmarks.bench_family(_doc(args, "bsp_benchmark.md"), args.scenes, args.methods,
+                                   ks=ks, side=args.side, repeats=args.repeats)
 
 
 def cmd_cull(args) -> int:
-    from bsplab import bench_cull
-    if args.out:
-        output_file(args.out, "--out", "cull_benchmark.md")
-    rows = bench_cull.run(args.scenes, repeats=args.repeats, side=args.side)
-    if args.out:
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(bench_cull.markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:])))
-        print(f"written {out}")
-    return 0
+    from bsplab.lab import benchmarks
+    return benchmarks.bench_cull(_doc(args, "cull_benchmark.md"), args.scenes, side=args.side,
+                                 repeats=args.repeats)
 
 
 def cmd_experiment(args) -> int:
-    from bsplab import experiment, report
+    from bsplab import lab
     overrides = {"executor": args.executor, "workers": args.workers,
                  "scheduler": args.scheduler, "repetitions": args.repetitions}
-    spec = experiment.load_spec(args.spec, **overrides)
+    spec = lab.load_spec(args.spec, **overrides)
     out = Path(args.out or Path("out") / "experiments" / spec.name)
     if out.is_dir():
         raise ValueError(f"--out {out} is a directory; give a results path such as "
@@ -162,7 +141,7 @@ def cmd_experiment(args) -> int:
         output_file(out.with_suffix(suffix), "--out", spec.name + suffix)
     if args.report:
         output_file(args.report, "--report", "report.md")
-    rows = experiment.run(spec, out, fresh=args.fresh)
+    rows = lab.run(spec, out, fresh=args.fresh)
     print(f"{len(rows)} rows in {out.with_suffix('.csv')} (run record: {out.with_suffix('.json')})")
     if args.report:
         write_report(rows, out, Path(args.report), spec.name)
@@ -174,26 +153,26 @@ def cmd_experiment(args) -> int:
 
 def write_report(rows, results_path: Path, md: Path, title: str) -> None:
     import json
-    from bsplab import report
+    from bsplab.lab import plots, report
     meta_path = results_path.with_suffix(".json")
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else None
     plot_dir = md.parent / (md.stem + "_plots")
-    pngs = report.plots(rows, plot_dir)
+    pngs = plots.plots(rows, plot_dir)
     md.parent.mkdir(parents=True, exist_ok=True)
     md.write_text(report.markdown(rows, title, meta, pngs, relative_to=md.parent))
     print(f"written {md} and {len(pngs)} plots in {plot_dir}")
 
 
 def cmd_report(args) -> int:
-    from bsplab import experiment
+    from bsplab import lab
     output_file(args.out, "--out", "report.md")
-    rows = experiment.read_rows(args.results)
+    rows = lab.read_rows(args.results)
     write_report(rows, Path(args.results), Path(args.out), args.title)
     return 0
 
 
 def cmd_results(args) -> int:
-    from bsplab import results
+    from bsplab.lab import results
     output_file(args.out, "--out", "results.md")
     return results.main(quick=args.quick, out=Path(args.out), fresh=not args.resume)
 
@@ -209,10 +188,9 @@ def cmd_agree(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    from bsplab import calibrate
-    r = calibrate.run(args.scenes, repeats=args.repeats)
-    for k, v in r.items():
-        print(f"  {k:18} {v:.3f}" if isinstance(v, float) else f"  {k:18} {v}")
+    from bsplab.lab import benchmarks, report
+    fit = benchmarks.calibrate(args.scenes, repeats=args.repeats)
+    print("\n".join(report.calibration_lines(fit)))
     return 0
 
 
@@ -268,32 +246,32 @@ def main(argv=None) -> int:
     b = sub.add_parser("bench", help="build and trace time against Embree")
     b.add_argument("--scenes", nargs="*", help="default: generated + all shared meshes")
     b.add_argument("--methods", nargs="*", help="default: kd")
-    b.add_argument("--side", type=whole(1), default=512, help="primary rays: side x side")
-    b.add_argument("--rays", type=whole(1), default=250_000, help="random rays")
-    b.add_argument("--repeats", type=whole(1), default=3)
-    b.add_argument("--out", help="write a Markdown report here")
+    b.add_argument("--side", type=whole(1), help="primary rays: side x side (default 512)")
+    b.add_argument("--rays", type=whole(1), help="random rays (default 250,000)")
+    b.add_argument("--repeats", type=whole(1), help="paired rounds (default 3)")
+    b.add_argument("--out", help="write a Markdown report here (rows in data/ beside it)")
     b.set_defaults(func=cmd_bench)
 
     f = sub.add_parser("bench-family",
                        help="every BSP method at K = kmin..kmax against kd and Embree")
     f.add_argument("--scenes", nargs="+",
-                   default=["sponza_dabrovic", "conference", "sibenik", "bunny"])
+                   help="default: sponza_dabrovic conference sibenik bunny")
     f.add_argument("--methods", nargs="*", help="default: every method but kd")
     f.add_argument("--kmin", type=whole(1), default=3)
     f.add_argument("--kmax", type=whole(1), default=10)
     f.add_argument("--ks", type=whole(1), nargs="*",
                    help="explicit K values (instead of kmin..kmax)")
-    f.add_argument("--side", type=whole(1), default=384, help="primary rays: side x side")
-    f.add_argument("--repeats", type=whole(1), default=2)
-    f.add_argument("--out", help="write Markdown here (and the rows as .csv beside it)")
+    f.add_argument("--side", type=whole(1), help="primary rays: side x side (default 384)")
+    f.add_argument("--repeats", type=whole(1), help="paired rounds (default 3)")
+    f.add_argument("--out", help="write Markdown here (rows in data/ beside it)")
     f.set_defaults(func=cmd_family)
 
     u = sub.add_parser("bench-cull", help="leaf culling on vs off, per scene and method")
     u.add_argument("--scenes", nargs="+",
-                   default=["sponza_dabrovic", "conference", "sibenik", "bunny"])
-    u.add_argument("--side", type=whole(1), default=384)
-    u.add_argument("--repeats", type=whole(1), default=3)
-    u.add_argument("--out", help="write Markdown here")
+                   help="default: sponza_dabrovic conference sibenik bunny")
+    u.add_argument("--side", type=whole(1), help="primary rays: side x side (default 384)")
+    u.add_argument("--repeats", type=whole(1), help="paired rounds (default 3)")
+    u.add_argument("--out", help="write Markdown here (rows in data/ beside it)")
     u.set_defaults(func=cmd_cull)
 
     x = sub.add_parser("experiment", help="run an experiment spec (TOML or JSON), resumable")
@@ -332,8 +310,8 @@ def main(argv=None) -> int:
     a.set_defaults(func=cmd_agree)
 
     c = sub.add_parser("calibrate", help="fit the SAH costs to this machine's trace times")
-    c.add_argument("--scenes", nargs="+", default=["spheres", "room"])
-    c.add_argument("--repeats", type=whole(1), default=3)
+    c.add_argument("--scenes", nargs="+", help="default: spheres room")
+    c.add_argument("--repeats", type=whole(1), help="paired rounds (default 3)")
     c.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("scenes", help="(re)write the generated scenes as PLY files")

@@ -40,7 +40,7 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
         seed: int = 0, out=print) -> list[dict]:
     """One row per scene, method and family; prints a table as it goes."""
     import bsplab
-    from .bench import load
+    from .scenes import load
 
     table = bsplab.methods()
     rows = []

@@ -22,6 +22,10 @@ from .camera import Camera
 from .io import write_ply
 
 NAMES = ("room", "spheres", "fan")
+# What a scene name may also be: a mesh file (read by bsplab.io) or a .blend
+# (exported by a Blender process, camera included).
+MESH_SUFFIXES = (".ply", ".obj")
+FILE_SUFFIXES = MESH_SUFFIXES + (".blend",)
 
 Mesh = tuple[np.ndarray, np.ndarray]  # (vertices (V,3) float64, faces (F,3) int64)
 
@@ -323,3 +327,43 @@ def main_write(out_dir: Union[str, Path]) -> list[Path]:
         write_ply(path, *generate_mesh(name))
         paths.append(path)
     return paths
+
+
+# -- loading any scene by name ---------------------------------------------------
+
+
+def looks_like_file(name: str) -> bool:
+    """A scene name that names a file rather than a generated or shared scene."""
+    return Path(name).suffix.lower() in FILE_SUFFIXES or "/" in name
+
+
+def shared_path(name: str) -> Path:
+    """`<name>.ply` in the shared scenes folder; FileNotFoundError naming what
+    else `name` could have been."""
+    from . import workloads
+    shared = workloads.shared_scenes_dir()
+    if shared is None or not (shared / f"{name}.ply").is_file():
+        raise FileNotFoundError(
+            f"no scene {name!r}: not a generated scene ({', '.join(NAMES)}), a file, or a "
+            f"mesh in the shared scenes folder ({shared or 'not found'})")
+    return shared / f"{name}.ply"
+
+
+def load(name: str) -> np.ndarray:
+    """Triangles `(N,3,3)` float32 of any scene name (see `load_with_camera`)."""
+    return load_with_camera(name)[0]
+
+
+def load_with_camera(name: str) -> tuple[np.ndarray, Camera | None]:
+    """Triangles and the scene's own camera (None when it has none) of a
+    generated scene, an existing .ply/.obj/.blend file (bsplab.io says what
+    is wrong with a file it cannot read), or a shared mesh's name."""
+    from . import io
+    if name in NAMES + PROBE_NAMES:
+        return generate(name), default_camera(name) if name in NAMES else None
+    path = Path(name)
+    if not path.exists():
+        path = shared_path(name)
+    if path.suffix.lower() == ".blend":
+        return io.load_blend(path)
+    return io.load_mesh(path), None

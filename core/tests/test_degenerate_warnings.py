@@ -10,7 +10,7 @@ import pytest
 
 import bsplab
 from bsplab import __main__ as cli
-from bsplab import bench, io, scenes
+from bsplab import io, scenes
 
 from test_memory_limit import soup
 
@@ -77,14 +77,11 @@ def test_demo_table_shows_the_warning(tmp_path, capsys):
 
 
 def test_bench_report_shows_the_warning():
-    stats = {"nodes": 3, "leaves": 2, "max_depth": 1, "duplication": 1.0,
-             "mean_leaf_size": 500.0, "bytes": 1 << 20, "sah_cost": 9.0,
-             "warnings": ["degenerate tree: one leaf holds 1000 of the 1000 triangles (100%)"]}
-    figures = {"speed_1t": 1.0, "speed_2t": 1.0, "agreement": 1.0, "rays": 1,
-               "embree_mrays": 1.0, "mrays_1t": 1.0, "mrays_2t": 1.0, "mean_steps": 1.0,
-               "mean_tests": 1.0, "grazing": 0}
-    row = bench.Row("needles", 1000, "kd", 0.1, 0.1, stats,
-                    {"primary": figures, "random": figures})
-    assert "WARNING: degenerate tree" in bench.summary_line(row)
-    pytest.importorskip("embreex")
-    assert "**Warning** (needles, kd): degenerate tree" in bench.markdown([row], "cmd")
+    from bsplab.lab import ROW_FIELDS, report
+    warning = "degenerate tree: one leaf holds 1000 of the 1000 triangles (100%)"
+    rows = [{**{c: "1" for c in ROW_FIELDS}, "scene": "needles", "method": "kd", "k": "",
+             "workload": w, "trace_s": "0.2 0.2", "kd_s": "0.2 0.2", "embree_s": "0.1 0.1",
+             "level_planes": "1", "level_directions": "1", "unexplained": "0",
+             "variant": "", "warnings": warning} for w in ("primary", "random")]
+    md = report.benchmark_markdown(rows, "cmd")
+    assert f"**Warning** (needles, kd): {warning}." in md

@@ -11,8 +11,8 @@ import sys
 
 import pytest
 
-from bsplab import experiment, executors, report
-from bsplab.experiment import SpecError
+from bsplab import lab
+from bsplab.lab import SpecError, executors, plots, report
 
 pytest.importorskip("embreex", reason="the runner times Embree beside every trace")
 
@@ -36,6 +36,7 @@ class SpyExecutor(executors.InlineExecutor):
     """Inline, recording the cells it runs; can stop after `stop_after` cells."""
 
     def __init__(self, stop_after=None):
+        super().__init__(lab.run_cell)
         self.ran, self.stop_after = [], stop_after
 
     def map(self, spec, todo, scene_data=None, progress=None):
@@ -47,7 +48,7 @@ class SpyExecutor(executors.InlineExecutor):
 
 
 def spec(**changes):
-    return experiment.make_spec({**TINY, **changes})
+    return lab.make_spec({**TINY, **changes})
 
 
 def read_csv(path):
@@ -56,7 +57,7 @@ def read_csv(path):
 
 
 def test_rows_cover_every_cell_and_workload(tmp_path):
-    rows = experiment.run(spec(), tmp_path / "r", quiet=True)
+    rows = lab.run(spec(), tmp_path / "r", quiet=True)
     assert len(rows) == TINY_CELLS * 2
     on_disk = read_csv(tmp_path / "r")
     assert len(on_disk) == len(rows)
@@ -83,46 +84,46 @@ def test_rows_cover_every_cell_and_workload(tmp_path):
 def test_resume_runs_only_the_missing_cells(tmp_path):
     first = SpyExecutor(stop_after=3)
     with pytest.raises(KeyboardInterrupt):
-        experiment.run(spec(), tmp_path / "r", executor=first, quiet=True)
+        lab.run(spec(), tmp_path / "r", executor=first, quiet=True)
     assert len(read_csv(tmp_path / "r")) == 3 * 2
     second = SpyExecutor()
-    rows = experiment.run(spec(), tmp_path / "r", executor=second, quiet=True)
+    rows = lab.run(spec(), tmp_path / "r", executor=second, quiet=True)
     assert len(second.ran) == TINY_CELLS - 3
     assert not {c.key for c in first.ran} & {c.key for c in second.ran}
     assert len(rows) == len(read_csv(tmp_path / "r")) == TINY_CELLS * 2
     third = SpyExecutor()
-    experiment.run(spec(), tmp_path / "r", executor=third, quiet=True)
+    lab.run(spec(), tmp_path / "r", executor=third, quiet=True)
     assert third.ran == []  # nothing left to do
     meta = json.loads((tmp_path / "r.json").read_text())
     assert [r["cells_before"] for r in meta["runs"]] == [0, 3, TINY_CELLS]
 
 
 def test_a_cut_last_line_is_run_again(tmp_path):
-    experiment.run(spec(), tmp_path / "r", quiet=True)
+    lab.run(spec(), tmp_path / "r", quiet=True)
     path = (tmp_path / "r").with_suffix(".csv")
     lines = path.read_text().splitlines()
     path.write_text("\n".join(lines[:-1] + [lines[-1][:20]]) + "\n")  # killed mid-write
     spy = SpyExecutor()
-    experiment.run(spec(), tmp_path / "r", executor=spy, quiet=True)
+    lab.run(spec(), tmp_path / "r", executor=spy, quiet=True)
     assert len(spy.ran) == 1
     assert len(read_csv(tmp_path / "r")) == TINY_CELLS * 2
 
 
 def test_another_spec_does_not_resume_into_old_results(tmp_path):
-    experiment.run(spec(methods=["kd"]), tmp_path / "r", quiet=True)
+    lab.run(spec(methods=["kd"]), tmp_path / "r", quiet=True)
     with pytest.raises(SpecError, match="different spec"):
-        experiment.run(spec(methods=["kd"], width=30), tmp_path / "r", quiet=True)
-    rows = experiment.run(spec(methods=["kd"], width=30), tmp_path / "r", fresh=True, quiet=True)
+        lab.run(spec(methods=["kd"], width=30), tmp_path / "r", quiet=True)
+    rows = lab.run(spec(methods=["kd"], width=30), tmp_path / "r", fresh=True, quiet=True)
     assert {r["rays"] for r in rows if r["workload"] == "primary"} == {str(30 * 16)}
 
 
 def test_process_pool_and_dask_give_the_same_counters(tmp_path):
     small = dict(methods=["kd", "bsp_cn+kd"], ks=[4], seeds=[1], workloads=["ao"])
-    inline = experiment.run(spec(**small), tmp_path / "inline", quiet=True)
-    pool = experiment.run(spec(executor="process", workers=2, **small), tmp_path / "pool",
+    inline = lab.run(spec(**small), tmp_path / "inline", quiet=True)
+    pool = lab.run(spec(executor="process", workers=2, **small), tmp_path / "pool",
                           quiet=True)
     pytest.importorskip("distributed", reason="dask distributed is in the test dependencies")
-    dask = experiment.run(spec(executor="dask", workers=2, **small), tmp_path / "dask",
+    dask = lab.run(spec(executor="dask", workers=2, **small), tmp_path / "dask",
                           quiet=True)
 
     def counters(rows):
@@ -134,9 +135,9 @@ def test_process_pool_and_dask_give_the_same_counters(tmp_path):
 
 
 def test_report_renders_tables_and_plots(tmp_path):
-    rows = experiment.run(spec(), tmp_path / "r", quiet=True)
+    rows = lab.run(spec(), tmp_path / "r", quiet=True)
     rows = read_csv(tmp_path / "r")
-    pngs = report.plots(rows, tmp_path / "plots")
+    pngs = plots.plots(rows, tmp_path / "plots")
     names = {p.name for p in pngs}
     assert {"time_primary.png", "tests_ao.png", "steps_primary.png", "build.png",
             "levels_directions.png", "levels_planes.png"} <= names
@@ -187,37 +188,37 @@ def test_report_renders_tables_and_plots(tmp_path):
 ])
 def test_bad_specs_say_what_is_wrong(changes, message):
     with pytest.raises(SpecError, match=message):
-        experiment.make_spec({**TINY, **changes})
+        lab.make_spec({**TINY, **changes})
 
 
 @pytest.mark.parametrize("data, kind", [([TINY], "a list"), ("tiny", "a string"),
                                         (3, "a number"), (None, "null")])
 def test_a_spec_must_be_a_table(tmp_path, data, kind):
     with pytest.raises(SpecError, match=f"a spec must be a table .* got {kind}$"):
-        experiment.make_spec(data)
+        lab.make_spec(data)
     path = tmp_path / "list.json"
     path.write_text(json.dumps(data))
     with pytest.raises(SpecError, match=f"^{path}: a spec must be a JSON object of settings "
                                         rf".*, got {kind}$"):
-        experiment.load_spec(path)
+        lab.load_spec(path)
 
 
 def test_spec_file_errors_name_the_file(tmp_path):
     with pytest.raises(SpecError, match=f"spec file {tmp_path} is a directory"):
-        experiment.load_spec(tmp_path)
+        lab.load_spec(tmp_path)
     binary = tmp_path / "binary.toml"
     binary.write_bytes(b"\xff\xfe\x00bad")
     with pytest.raises(SpecError, match=rf"^{binary}: not a text \(UTF-8\) file: byte 0 is "):
-        experiment.load_spec(binary)
+        lab.load_spec(binary)
     empty = tmp_path / "empty.toml"
     empty.write_text('scenes = ["room"]\nmethods = ["rbsp"]\nks = "10..3"\n')
     with pytest.raises(SpecError, match=f"^{empty}: ks: empty range '10..3'"):
-        experiment.load_spec(empty)
+        lab.load_spec(empty)
     with pytest.raises(SpecError, match=f"^{empty} with --workers: ks: empty range"):
-        experiment.load_spec(empty, workers=2)  # the command line's keys are named too
+        lab.load_spec(empty, workers=2)  # the command line's keys are named too
     (tmp_path / "scene.ply").mkdir()
     with pytest.raises(SpecError, match="scene file .*scene.ply is a directory"):
-        experiment.make_spec({**TINY, "scenes": [str(tmp_path / "scene.ply")]})
+        lab.make_spec({**TINY, "scenes": [str(tmp_path / "scene.ply")]})
 
 
 def _report_cli(*argv):
@@ -233,12 +234,12 @@ def test_report_refuses_files_that_are_not_experiment_results(tmp_path):
     with pytest.raises(ValueError, match=f"^{foreign}: not the results of `python -m bsplab "
                                          "experiment`: missing column\\(s\\) scene, "
                                          "workload, method, k,"):
-        experiment.read_rows(foreign)
+        lab.read_rows(foreign)
     code, err = _report_cli(foreign, "--out", tmp_path / "r.md")
     assert code == 2 and err.startswith(f"error: {foreign}: not the results of")
     assert "missing column(s) scene" in err
     # The right columns with a value that is not a number: the line is named.
-    good = experiment.ROW_FIELDS
+    good = lab.ROW_FIELDS
     row = {c: "1" for c in good} | {"scene": "room", "workload": "primary", "method": "kd",
                                     "k": "", "trace_s": "0.1 0.2", "embree_s": "x"}
     bad = tmp_path / "bad.csv"
@@ -248,13 +249,13 @@ def test_report_refuses_files_that_are_not_experiment_results(tmp_path):
         w.writerow(row)
     with pytest.raises(ValueError, match=f"^{bad}: line 2: column embree_s has 'x', expected "
                                          "numbers separated by spaces, or nothing$"):
-        experiment.read_rows(bad)
+        lab.read_rows(bad)
     header_only = tmp_path / "header.csv"
     header_only.write_text(",".join(good) + "\n")
     with pytest.raises(ValueError, match="no result rows"):
-        experiment.read_rows(header_only)
+        lab.read_rows(header_only)
     with pytest.raises(FileNotFoundError, match="no results file .*missing.csv"):
-        experiment.read_rows(tmp_path / "missing.csv")
+        lab.read_rows(tmp_path / "missing.csv")
     code, err = _report_cli(tmp_path / "missing.csv", "--out", tmp_path / "r.md")
     assert code == 2 and err == f"error: no results file {tmp_path / 'missing.csv'}\n"
 
@@ -288,11 +289,11 @@ def test_spec_files_and_the_command_line(tmp_path):
     rel = tmp_path / "rel.json"
     rel.write_text(json.dumps({"scenes": ["meshes/missing.ply"], "methods": ["kd"]}))
     with pytest.raises(SpecError, match="meshes/missing.ply does not exist"):
-        experiment.load_spec(rel)
+        lab.load_spec(rel)
 
 
 def test_results_quick_regenerates_its_page(tmp_path):
-    from bsplab import results
+    from bsplab.lab import results
     assert results.main(quick=True, out=tmp_path / "results.md") == 0
     md = (tmp_path / "results.md").read_text()
     assert "# Results: the BSP family against kd and Embree (quick)" in md
@@ -302,7 +303,7 @@ def test_results_quick_regenerates_its_page(tmp_path):
 
 
 def test_thesis_comparison_lines_up_methods_and_scenes():
-    from bsplab import results
+    from bsplab.lab import results
     rows = []
     for method, k, t in (("kd", "", "2"), ("bsp_wn+kd", "6", "1.5")):
         for w in ("primary", "ao"):

@@ -10,9 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import experiment, report
+from . import plots, report
+from .runner import run
+from .spec import load_spec
 
-SPECS = Path(__file__).parent / "specs"
+SPECS = Path(__file__).resolve().parent.parent / "specs"
 
 # Median render time as % of the thesis's kd-tree, per K: (Been, Sponza,
 # Conference Hall), from its tables 5.1-5.9 (7 runs each).
@@ -75,14 +77,14 @@ def thesis_comparison(rows: list[dict]) -> list[str]:
 
 
 def main(quick: bool = False, out: Path = Path("docs/results.md"), fresh: bool = True) -> int:
-    spec = experiment.load_spec(SPECS / ("results_quick.toml" if quick else "results.toml"))
+    spec = load_spec(SPECS / ("results_quick.toml" if quick else "results.toml"))
     out = Path(out)
     if quick and out == Path("docs/results.md"):
         out = Path("out/results_quick/results.md")  # CI never rewrites the docs
     data = out.parent / "data" / ("results_quick" if quick else "results")
-    rows = experiment.run(spec, data, fresh=fresh)
+    rows = run(spec, data, fresh=fresh)
     plot_dir = out.parent / ("results_quick_plots" if quick else "results_plots")
-    pngs = report.plots(rows, plot_dir)
+    pngs = plots.plots(rows, plot_dir)
     meta = json.loads(data.with_suffix(".json").read_text())
     # All starts of the run (a resumed run took several).
     minutes = sum(r.get("seconds", 0) for r in meta["runs"]) / 60
@@ -114,5 +116,5 @@ def main(quick: bool = False, out: Path = Path("docs/results.md"), fresh: bool =
     out.write_text("\n".join(text) + "\n")
     print(f"written {out} ({len(rows)} rows, {len(pngs)} plots in {plot_dir}) "
           f"in {minutes:.1f} min")
-    wrong = sum(int(r["unexplained"]) for r in rows if r["unexplained"] not in ("", None))
+    wrong = sum(report.wrong_hits(g) for g in report.Results(rows).groups.values())
     return 1 if wrong else 0

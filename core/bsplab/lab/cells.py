@@ -1,0 +1,187 @@
+"""Cells: one tree of a spec (scene, method, K, seed, option variant), built
+once and traced on every workload of the spec with the lab's timing protocol
+(`timing.paired_rounds`) beside its references, giving one row per workload.
+
+Counters (steps, tests, node counts) are exact and machine-independent;
+times are kept per round so that reports can pair them."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import scenes, workloads
+from .spec import Spec, build_options
+from .timing import PairedTimes, Tracer, format_times, paired_rounds
+
+
+@dataclass(frozen=True)
+class Cell:
+    scene: str
+    method: str
+    k: int | None
+    seed: int
+    variant: str = ""   # canonical JSON of the variant's build options; "" for none
+
+    @property
+    def key(self) -> str:
+        base = f"{self.scene}|{self.method}|{'' if self.k is None else self.k}|{self.seed}"
+        # Without a variant the key is what results files before variants hold.
+        return f"{base}|{self.variant}" if self.variant else base
+
+    def label(self) -> str:
+        k = "" if self.k is None else f" K={self.k}"
+        v = f" {self.variant}" if self.variant else ""
+        return f"{Path(self.scene).name} {self.method}{k} seed {self.seed}{v}"
+
+
+def cells(spec: Spec) -> list[Cell]:
+    """Every cell of the spec, ordered by scene (a worker keeps its scene loaded)."""
+    return [Cell(scene, method, k, seed, variant)
+            for scene in spec.scenes
+            for method in spec.methods
+            for k in spec.ks_of(method)
+            for seed in spec.seeds_of(method)
+            for variant in spec.variants_of(method)]
+
+
+@dataclass
+class SceneData:
+    """Triangles and the camera of a scene (its own, or one framing it)."""
+    triangles: np.ndarray
+    camera: object
+
+
+_scene_cache: dict = {}
+
+
+def load_scene(scene: str) -> SceneData:
+    """Loads a scene once per process (one at a time: the big ones are 10 MB+)."""
+    if scene not in _scene_cache:
+        tris, camera = scenes.load_with_camera(scene)
+        _scene_cache.clear()
+        _scene_cache[scene] = SceneData(tris, camera or workloads.framing_camera(tris))
+    return _scene_cache[scene]
+
+
+def make_rays(spec: Spec, data: SceneData, embree) -> dict:
+    """The workloads' rays: {name: (origins, directions, tmax)}."""
+    from .. import build
+    o, d = data.camera.rays(spec.width, spec.height)
+    out = {"primary": (o, d, np.inf)}
+    if {"ao", "diffuse"} & set(spec.workloads):
+        # Secondary rays start at the primary hits; Embree's answer is the
+        # reference, so every tree gets the same rays.
+        hits = embree.intersect(o, d) if embree else build(data.triangles).intersect(o, d)
+        lo, hi = workloads.bounds(data.triangles)
+        so, sd = workloads.ambient_occlusion_rays(data.triangles, o, d, hits,
+                                                  samples=spec.ao_samples)
+        # AO: short rays (any occluder within reach); diffuse: a full bounce.
+        out["ao"] = (so, sd, float(spec.ao_distance * np.linalg.norm(hi - lo)))
+        out["diffuse"] = (so, sd, np.inf)
+    if "random" in spec.workloads:  # the most incoherent rays: anywhere, any way
+        ro, rd = workloads.random_rays(data.triangles, spec.random_rays, seed=1)
+        out["random"] = (ro, rd, np.inf)
+    return {w: out[w] for w in spec.workloads}
+
+
+_kd_cache: dict = {}
+
+
+def kd_reference(spec: Spec, scene: str, data: SceneData):
+    """The kd-tree every cell of a scene is timed against, built once per process
+    (with the spec's options, not a variant's: one reference for all cells)."""
+    from .. import build
+    opts = build_options(spec, "kd")
+    key = (scene, id(data.triangles), json.dumps(opts, sort_keys=True))
+    if key not in _kd_cache:
+        _kd_cache.clear()
+        _kd_cache[key] = build(data.triangles, method="kd", threads=spec.build_threads, **opts)
+    return _kd_cache[key]
+
+
+def _tracers(tree, kd, embree, spec: Spec, o, d, tmax) -> dict[str, Tracer]:
+    """The cell's tree and its references on the same rays, one thread each."""
+    etmax = None if np.isinf(tmax) else tmax
+    out = {"ours": Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1))}
+    if kd is not tree:  # the kd cell's own times are its kd times
+        out["kd"] = Tracer(lambda: kd.intersect(o, d, tmax=tmax, threads=1))
+    if embree:
+        out["embree"] = Tracer(lambda: embree.intersect(o, d, tmax=etmax),
+                               lambda: embree.last_seconds)
+    if spec.cull:
+        out["culled"] = Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1, cull=True))
+    return out
+
+
+def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
+             progress=None) -> list[dict]:
+    """Builds the cell's tree and traces every workload; one row per workload."""
+    from .. import Cancelled, build, oracle
+    data = scene_data or load_scene(cell.scene)
+    tris = data.triangles
+    # Not inside a Blender whose own Embree clashes with embreex's.
+    usable = oracle.available() and oracle.foreign_embree_library() is None
+    embree = oracle.EmbreeTracer(tris) if usable else None
+    rays = make_rays(spec, data, embree)
+    tree = build(tris, method=cell.method, threads=spec.build_threads, progress=progress,
+                 **build_options(spec, cell.method, cell.k, cell.seed, cell.variant))
+    # A kd cell is its own reference, unless a variant made it another kd-tree.
+    own_reference = cell.method == "kd" and not cell.variant
+    kd = tree if own_reference else kd_reference(spec, cell.scene, data)
+
+    def check_cancel():
+        if progress is not None and progress.cancelled:
+            raise Cancelled("cancelled")
+
+    rows = []
+    for w, (o, d, tmax) in rays.items():
+        times = paired_rounds(_tracers(tree, kd, embree, spec, o, d, tmax), spec.repetitions,
+                              between_rounds=check_cancel)
+        if kd is tree:
+            times.seconds["kd"] = times.seconds["ours"]
+        rows.append(_row(cell, tris, tree.stats, w, o, d, times, embree))
+    return rows
+
+
+def _row(cell: Cell, tris, s: dict, workload: str, o, d, times: PairedTimes, embree) -> dict:
+    from .. import oracle
+    hits = times.results["ours"]
+    unexplained = grazing = ""
+    if embree is not None:
+        c = oracle.compare(hits, times.results["embree"], triangles=tris, origins=o,
+                           directions=d)
+        unexplained, grazing = len(c["unexplained"]), c["grazing"]
+    row = {
+        "scene": cell.scene, "triangles": len(tris), "method": cell.method,
+        "k": "" if cell.k is None else cell.k, "seed": cell.seed, "workload": workload,
+        "rays": len(o), "build_s": s["build_seconds"], "nodes": s["nodes"],
+        "kd_nodes": s["kd_nodes"], "general_nodes": s["general_nodes"],
+        "leaves": s["leaves"], "refs_per_tri": s["duplication"], "bytes": s["bytes"],
+        "sah": s["sah_cost"],
+        "level_planes": " ".join(map(str, s["level_planes"])),
+        "level_directions": " ".join(map(str, s["level_directions"])),
+        "trace_s": format_times(times.seconds["ours"]),
+        "kd_s": format_times(times.seconds["kd"]),
+        "embree_s": format_times(times.seconds.get("embree", [])),
+        "steps": float(hits["steps"].mean()),
+        "general_steps": float(hits["general_steps"].mean()),
+        "tests": float(hits["tests"].mean()),
+        "hits": int((hits["prim"] >= 0).sum()),
+        "unexplained": unexplained, "grazing": grazing,
+        "embree_build_s": embree.build_seconds if embree else "",
+        "variant": cell.variant, "max_depth": s["max_depth"],
+        "mean_leaf_size": s["mean_leaf_size"], "box_bytes": s["box_bytes"],
+        "warnings": "; ".join(s.get("warnings", ())),
+        "cull_s": "", "cull_tests": "", "culled": "", "cull_differs": "",
+    }
+    if "culled" in times.results:
+        on = times.results["culled"]
+        row.update(cull_s=format_times(times.seconds["culled"]),
+                   cull_tests=float(on["tests"].mean()), culled=float(on["culled"].mean()),
+                   # Culling must never change an answer.
+                   cull_differs=int((on["t"] != hits["t"]).sum()))
+    return row
