@@ -150,8 +150,13 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     const float org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
     const float idir[3] = {inv.x, inv.y, inv.z};
     const ShearedRay sray(o, d);
+    // Locals, so that the hot loop keeps them in registers.
     const Node* nodes = tree.nodes;
     const Plane* planes = tree.planes;
+    const uint32_t* refs = tree.refs;
+    const Triangle* tris = tree.tris;
+    const Box* boxes = tree.boxes;
+    const bool inline_single = tree.inline_single;
     // A general plane's crossing is off by a few roundings of the terms it
     // is computed from: the plane offset (at most a few scene coordinates),
     // n.o (at most |o|_1, n being unit) and t n.d (at most |t| |d|_1).
@@ -246,7 +251,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
         }
         const uint32_t n_refs = node.count();
         const uint32_t* list =
-            n_refs == 1 && tree.inline_single ? &nodes[index].first : tree.refs + node.first;
+            n_refs == 1 && inline_single ? &nodes[index].first : refs + node.first;
         SegmentBox seg;
         if constexpr (kBoxes != LeafBoxes::None)
             seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
@@ -255,7 +260,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
             if constexpr (kBoxes != LeafBoxes::None) {
                 // A culled triangle is not marked in the mailbox: it may
                 // still be hit in a later leaf that references it.
-                const Box& b = tree.boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
+                const Box& b = boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
                 if (seg.misses(b)) {
                     count.cull();
                     continue;
@@ -264,7 +269,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
             if (mailbox.seen(p)) continue;
             count.test();
             TriangleHit th;
-            if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th)) {
+            if (intersect_triangle(sray, tris[p], tmin, hit.t, th)) {
                 hit.t = th.t;
                 hit.prim = int32_t(p);
                 hit.u = th.u;
