@@ -165,7 +165,9 @@ class Job(WorkerJob):
         image, render_stats = core.render(tree, cam, inp.camera.width, inp.camera.height,
                                           mode=inp.mode, threads=inp.threads,
                                           cull=inp.cull or inp.mode == "heat_culled",
-                                          progress=self.render_progress)
+                                          # The panel's Steps / Tests per Ray: counted
+                                          # in the same trace, in every mode.
+                                          counters=True, progress=self.render_progress)
         self._check_cancelled()
         render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
                             mode=inp.mode, camera=inp.camera.name)

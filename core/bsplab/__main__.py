@@ -49,8 +49,9 @@ def cmd_demo(args) -> int:
     print(f"scene {args.scene}: {len(tris):,} triangles; method {args.method}")
     progress = bsplab.Progress()
     tree = bsplab.build(tris, method=args.method, progress=progress)
+    # Counted in every mode: the table shows the steps and tests per ray.
     image, rstats = bsplab.render(tree, camera, args.width, args.height, args.mode,
-                                  threads=args.threads)
+                                  threads=args.threads, counters=True)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_png(out, image)
     s = tree.stats

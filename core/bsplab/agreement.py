@@ -25,11 +25,12 @@ class FamilyRays:
             ref = embree.intersect(o, d, tmax=tmax)
             self.rays[name] = (o, d, tmax, ref)
 
-    def check(self, tree, *, cull: bool = True) -> dict:
-        """Per family: the oracle's comparison of the tree's hits with Embree's."""
+    def check(self, tree, *, cull: bool = True, counters: bool = True) -> dict:
+        """Per family: the oracle's comparison of the tree's hits with Embree's
+        (`counters=False`: traced on the hits-only path)."""
         out = {}
         for name, (o, d, tmax, ref) in self.rays.items():
-            hits = tree.intersect(o, d, tmax=tmax, cull=cull)
+            hits = tree.intersect(o, d, tmax=tmax, cull=cull, counters=counters)
             out[name] = oracle.compare(hits, ref, triangles=self.triangles, origins=o,
                                        directions=d, tmax=tmax)
             out[name]["hits"] = hits

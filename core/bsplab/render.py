@@ -76,11 +76,43 @@ def check_size(width, height) -> tuple[int, int]:
     return int(width), int(height)
 
 
+def counting(mode: str, counters) -> bool:
+    """Whether a render in `mode` traces on the counting path: `counters`
+    None means only when the mode shows a counter (the heatmaps)."""
+    if counters is None:
+        return mode in HEAT_COUNTERS
+    if not isinstance(counters, (bool, np.bool_)):
+        raise TypeError(f"counters must be True, False or None, got {counters!r}")
+    if not counters and mode in HEAT_COUNTERS:
+        raise ValueError(f"mode {mode!r} shows the {HEAT_COUNTERS[mode]} counter: "
+                         "it needs counters=True (or None)")
+    return bool(counters)
+
+
+def counter_stats(hits: dict | None) -> dict:
+    """The render's per-ray counter statistics; None for each when the
+    render traced on the hits-only path (not counted)."""
+    if hits is None:
+        return dict.fromkeys(("mean_steps", "mean_tests", "mean_culled", "mean_general_steps",
+                              "max_steps", "max_tests"))
+    return {
+        "mean_steps": float(hits["steps"].mean()),
+        "mean_tests": float(hits["tests"].mean()),
+        "mean_culled": float(hits["culled"].mean()),
+        "mean_general_steps": float(hits["general_steps"].mean()),
+        "max_steps": int(hits["steps"].max()),
+        "max_tests": int(hits["tests"].max()),
+    }
+
+
 def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "shaded", *,
-           threads: int = 0, cull: bool | None = None,
+           threads: int = 0, cull: bool | None = None, counters: bool | None = None,
            progress=None) -> tuple[np.ndarray, dict]:
     """Renders an (H, W, 4) float32 RGBA image (row 0 = top) and its statistics.
-    `cull` (leaf culling) defaults to on for the heat_culled mode only."""
+    `cull` (leaf culling) defaults to on for the heat_culled mode only.
+    `counters` defaults to the heatmap modes only: shaded, normal and depth
+    trace on the hits-only path (the same image) and leave the counter
+    statistics None; counters=True counts them in the same single trace."""
     if not isinstance(tree, Tree):
         raise TypeError(f"tree must be a bsplab.Tree, got {type(tree).__name__}")
     if not isinstance(camera, Camera):
@@ -89,11 +121,13 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
     progress = checks.progress(progress)
     if mode not in RENDER_MODES:
         raise ValueError(f"unknown render mode {mode!r}; modes: {', '.join(RENDER_MODES)}")
+    counted = counting(mode, counters)
     if cull is None:
         cull = mode == "heat_culled"
     origins, directions = camera.rays(width, height)
     start = time.perf_counter()
-    hits = tree.intersect(origins, directions, threads=threads, cull=cull, progress=progress)
+    hits = tree.intersect(origins, directions, threads=threads, cull=cull, counters=counted,
+                          progress=progress)
     seconds = time.perf_counter() - start
     image = np.ones((height * width, 4), np.float32)
     image[:, :3] = shade(mode, hits, directions, tree.triangles)
@@ -102,12 +136,8 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
         "seconds": seconds,
         "rays": n,
         "rays_per_second": n / seconds if seconds > 0 else float("inf"),
-        "mean_steps": float(hits["steps"].mean()),
-        "mean_tests": float(hits["tests"].mean()),
-        "mean_culled": float(hits["culled"].mean()),
-        "mean_general_steps": float(hits["general_steps"].mean()),
-        "max_steps": int(hits["steps"].max()),
-        "max_tests": int(hits["tests"].max()),
+        "counters": counted,
+        **counter_stats(hits if counted else None),
         "hits": int((hits["prim"] >= 0).sum()),
         "width": width,
         "height": height,

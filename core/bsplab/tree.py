@@ -7,6 +7,10 @@ import numpy as np
 from . import _core, checks
 from . import method_table as _methods
 
+# The per-ray counters intersect() returns unless asked for hits only, in
+# the core's argument order.
+COUNTERS = ("steps", "general_steps", "tests", "culled")
+
 
 class Tree:
     """An acceleration structure over a fixed set of triangles."""
@@ -44,16 +48,19 @@ class Tree:
         return self._tree.node_bytes()
 
     def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=False,
-                  progress=None) -> dict:
+                  counters=True, progress=None) -> dict:
         """Closest hits of the rays; see docs/api.md for the returned arrays.
         `tmin`/`tmax` are scalars or per-ray arrays; None means the default
         (0, and inf: no limit).
         `cull` skips, in each leaf, the triangles whose box misses the box of
         the ray's segment there (when the tree keeps boxes: leaf_boxes). It
         is off by default: on our SAH trees, whose leaves hold 2-5 triangles,
-        it removes many tests but rarely pays for itself (docs/cull_benchmark.md)."""
-        if not isinstance(cull, (bool, np.bool_)):
-            raise TypeError(f"cull must be True or False, got {cull!r}")
+        it removes many tests but rarely pays for itself (docs/cull_benchmark.md).
+        `counters=False` traces on the hits-only path, compiled without the
+        per-ray counters: the same t, prim, u, v bit for bit, and only those."""
+        for name, value in (("cull", cull), ("counters", counters)):
+            if not isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {value!r}")
         o, d = checks.rays(origins, directions)
         n = len(o)
         lo = checks.ray_range(tmin, "tmin", n, default=0.0)
@@ -64,13 +71,11 @@ class Tree:
             "prim": np.empty(n, np.int32),
             "u": np.empty(n, np.float32),
             "v": np.empty(n, np.float32),
-            "steps": np.empty(n, np.uint32),
-            "general_steps": np.empty(n, np.uint32),
-            "tests": np.empty(n, np.uint32),
-            "culled": np.empty(n, np.uint32),
         }
+        if counters:
+            out.update({name: np.empty(n, np.uint32) for name in COUNTERS})
         _core.intersect(self._tree, o, d, lo, hi, out["t"], out["prim"], out["u"], out["v"],
-                        out["steps"], out["general_steps"], out["tests"], out["culled"],
+                        *(out.get(name) for name in COUNTERS),
                         checks.threads(threads), bool(cull), progress)
         return out
 

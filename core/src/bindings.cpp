@@ -6,6 +6,7 @@
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/array.h>
 #include <nanobind/stl/map.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/variant.h>
 #include <nanobind/stl/vector.h>
 
@@ -43,23 +44,28 @@ std::unique_ptr<bsp::Tree> build(TriArray tris, const std::string& builder,
     return std::make_unique<bsp::Tree>(bsp::build_bsp_tree(std::move(copy), opt, progress));
 }
 
+using Counter = std::optional<Out<uint32_t>>;
+
+// The counter arrays are all given (the counting path) or all None (the
+// hits-only path); the core rejects a mix.
 void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, FloatIn tmin,
                FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u, Out<float> v,
-               Out<uint32_t> steps, Out<uint32_t> general_steps, Out<uint32_t> tests,
-               Out<uint32_t> culled, int threads, bool cull, bsp::Progress* progress) {
+               Counter steps, Counter general_steps, Counter tests, Counter culled, int threads,
+               bool cull, bsp::Progress* progress) {
     const size_t n = origins.shape(0);
     auto check = [n](size_t m, const char* what) {
         if (m != n) throw std::invalid_argument(std::string(what) + " has the wrong length");
+    };
+    auto counter = [&](Counter& c, const char* what) -> uint32_t* {
+        if (!c) return nullptr;
+        check(c->shape(0), what);
+        return c->data();
     };
     check(directions.shape(0), "directions");
     check(t.shape(0), "t");
     check(prim.shape(0), "prim");
     check(u.shape(0), "u");
     check(v.shape(0), "v");
-    check(steps.shape(0), "steps");
-    check(general_steps.shape(0), "general_steps");
-    check(tests.shape(0), "tests");
-    check(culled.shape(0), "culled");
     if (tmin.shape(0) != 1) check(tmin.shape(0), "tmin");
     if (tmax.shape(0) != 1) check(tmax.shape(0), "tmax");
     bsp::RayBatch rays;
@@ -70,8 +76,14 @@ void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, F
     rays.tmin_stride = tmin.shape(0) == 1 ? 0 : 1;
     rays.tmax_stride = tmax.shape(0) == 1 ? 0 : 1;
     rays.count = n;
-    bsp::HitBatch hits{t.data(),     prim.data(),          u.data(),     v.data(),
-                       steps.data(), general_steps.data(), tests.data(), culled.data()};
+    bsp::HitBatch hits{t.data(),
+                       prim.data(),
+                       u.data(),
+                       v.data(),
+                       counter(steps, "steps"),
+                       counter(general_steps, "general_steps"),
+                       counter(tests, "tests"),
+                       counter(culled, "culled")};
     nb::gil_scoped_release release;
     bsp::intersect(tree, rays, hits, threads, cull, progress);
 }
@@ -314,6 +326,7 @@ NB_MODULE(_core, m) {
         "method"_a, "values"_a, "The method's BuildOptions with `values` set by option name.");
     m.def("build", &build, "triangles"_a, "builder"_a, "options"_a, "progress"_a.none());
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
-          "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a, "general_steps"_a, "tests"_a, "culled"_a,
+          "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(), "tests"_a.none(),
+          "culled"_a.none(),
           "threads"_a, "cull"_a, "progress"_a.none());
 }

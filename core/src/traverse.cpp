@@ -3,6 +3,7 @@
 #include "traverse.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 
 #include "parallel.hpp"
 #include "triangle.hpp"
@@ -79,10 +80,67 @@ struct SegmentBox {
     }
 };
 
-template <LeafBoxes kBoxes>
-void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
-               Closest& hit, uint32_t& steps, uint32_t& general_steps, uint32_t& tests,
-               uint32_t& culled) {
+// What the traversal of one tree reads for every ray, looked up once per
+// batch rather than once per ray.
+struct TreeView {
+    const Node* nodes;
+    const Plane* planes;
+    const uint32_t* refs;
+    const Triangle* tris;
+    const Box* boxes;
+    Box bounds;
+    float cull_pad;
+    // Trees with a box per reference keep one-triangle leaves in refs[] too.
+    bool inline_single;
+    // The scene's part of a general plane's crossing error (see cross_a in
+    // trace_one): twice the largest coordinate of the scene box.
+    float two_scene_scale;
+
+    explicit TreeView(const Tree& tree)
+        : nodes(tree.nodes.data()),
+          planes(tree.planes.data()),
+          refs(tree.refs.data()),
+          tris(tree.triangles.data()),
+          boxes(tree.boxes.data()),
+          bounds(tree.bounds),
+          cull_pad(tree.cull_pad),
+          inline_single(tree.options.leaf_boxes != LeafBoxes::Clipped) {
+        const Box& b = tree.bounds;
+        const float scene_scale =
+            std::max({std::fabs(b.lo.x), std::fabs(b.lo.y), std::fabs(b.lo.z), std::fabs(b.hi.x),
+                      std::fabs(b.hi.y), std::fabs(b.hi.z)});
+        two_scene_scale = 2.0f * scene_scale;
+    }
+};
+
+// The counters are a compile-time policy of the traversal: CountEvery keeps
+// the heatmaps' and the statistics' counts of one ray, CountNothing is the
+// hits-only path, whose empty increments leave no counting code behind.
+struct CountEvery {
+    uint32_t steps = 0, general_steps = 0, tests = 0, culled = 0;
+    void step() { ++steps; }
+    void general_step() { ++general_steps; }
+    void test() { ++tests; }
+    void cull() { ++culled; }
+    void store(const HitBatch& hits, size_t i) const {
+        hits.steps[i] = steps;
+        hits.general_steps[i] = general_steps;
+        hits.tests[i] = tests;
+        hits.culled[i] = culled;
+    }
+};
+
+struct CountNothing {
+    void step() {}
+    void general_step() {}
+    void test() {}
+    void cull() {}
+    void store(const HitBatch&, size_t) const {}
+};
+
+template <LeafBoxes kBoxes, class Counters>
+void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+               Closest& hit, Counters& count) {
     hit.t = tmax;
     const Vec3 inv(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
     float t0 = tmin, t1 = tmax;
@@ -92,10 +150,13 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
     const float org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
     const float idir[3] = {inv.x, inv.y, inv.z};
     const ShearedRay sray(o, d);
-    const Node* nodes = tree.nodes.data();
-    const Plane* planes = tree.planes.data();
-    const uint32_t* refs = tree.refs.data();
-    const Triangle* tris = tree.triangles.data();
+    // Locals, so that the hot loop keeps them in registers.
+    const Node* nodes = tree.nodes;
+    const Plane* planes = tree.planes;
+    const uint32_t* refs = tree.refs;
+    const Triangle* tris = tree.tris;
+    const Box* boxes = tree.boxes;
+    const bool inline_single = tree.inline_single;
     // A general plane's crossing is off by a few roundings of the terms it
     // is computed from: the plane offset (at most a few scene coordinates),
     // n.o (at most |o|_1, n being unit) and t n.d (at most |t| |d|_1).
@@ -104,21 +165,14 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
     // so a ray from far away never skips a cell it passes through.
     // kd nodes need no widening: their crossings are computed exactly like
     // the scene box's and each other's, so their order is always consistent.
-    const float scene_scale = std::max({std::fabs(tree.bounds.lo.x), std::fabs(tree.bounds.lo.y),
-                                        std::fabs(tree.bounds.lo.z), std::fabs(tree.bounds.hi.x),
-                                        std::fabs(tree.bounds.hi.y), std::fabs(tree.bounds.hi.z)});
     constexpr float kCrossUlps = 1.0f / (1 << 20);  // 16 roundings of 2^-24
     const float cross_a =
-        kCrossUlps * (2.0f * scene_scale + std::fabs(o.x) + std::fabs(o.y) + std::fabs(o.z));
+        kCrossUlps * (tree.two_scene_scale + std::fabs(o.x) + std::fabs(o.y) + std::fabs(o.z));
     const float cross_b = kCrossUlps * (std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z));
     Mailbox mailbox;
     StackEntry stack[72];
     int top = 0;
     uint32_t index = 0;
-    uint32_t n_steps = 0, n_general = 0, n_tests = 0, n_culled = 0;
-    const Box* boxes = tree.boxes.data();
-    // Trees with a box per reference keep one-triangle leaves in refs[] too.
-    const bool inline_single = tree.options.leaf_boxes != LeafBoxes::Clipped;
 
     for (;;) {
         if (hit.t < t0) {
@@ -133,7 +187,7 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
             continue;
         }
         const Node node = nodes[index];
-        ++n_steps;
+        count.step();
         if (!node.is_leaf()) {
             // Both kinds reduce to: where the ray crosses the plane, and
             // which child it enters from. Before the crossing the ray is on
@@ -151,7 +205,7 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
                 down = std::signbit(dir[axis]);
                 above_child = node.kd_above();
             } else {
-                ++n_general;
+                count.general_step();
                 const Plane& p = planes[node.first];
                 const float no = p.nx * org[0] + p.ny * org[1] + p.nz * org[2];
                 const float nd = p.nx * dir[0] + p.ny * dir[1] + p.nz * dir[2];
@@ -195,24 +249,25 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
             }
             continue;
         }
-        const uint32_t count = node.count();
-        const uint32_t* list = count == 1 && inline_single ? &nodes[index].first : refs + node.first;
+        const uint32_t n_refs = node.count();
+        const uint32_t* list =
+            n_refs == 1 && inline_single ? &nodes[index].first : refs + node.first;
         SegmentBox seg;
         if constexpr (kBoxes != LeafBoxes::None)
             seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
-        for (uint32_t i = 0; i < count; ++i) {
+        for (uint32_t i = 0; i < n_refs; ++i) {
             const uint32_t p = list[i];
             if constexpr (kBoxes != LeafBoxes::None) {
                 // A culled triangle is not marked in the mailbox: it may
                 // still be hit in a later leaf that references it.
                 const Box& b = boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
                 if (seg.misses(b)) {
-                    ++n_culled;
+                    count.cull();
                     continue;
                 }
             }
             if (mailbox.seen(p)) continue;
-            ++n_tests;
+            count.test();
             TriangleHit th;
             if (intersect_triangle(sray, tris[p], tmin, hit.t, th)) {
                 hit.t = th.t;
@@ -233,16 +288,13 @@ void trace_one(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float
         t0 = stack[top].tmin;
         t1 = stack[top].tmax;
     }
-    steps = n_steps;
-    general_steps = n_general;
-    tests = n_tests;
-    culled = n_culled;
 }
 
-template <LeafBoxes kBoxes>
-void intersect_all(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+template <LeafBoxes kBoxes, class Counters>
+void intersect_all(const Tree& tree, const RayBatch& rays, const HitBatch& hits, int threads,
                    Progress* progress) {
     constexpr size_t kChunk = 1024;
+    const TreeView view(tree);
     const double scale = tree.scale, inv_scale = 1.0 / tree.scale;
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
@@ -251,18 +303,18 @@ void intersect_all(const Tree& tree, const RayBatch& rays, HitBatch& hits, int t
             const float* o = rays.origins + 3 * i;
             const float* d = rays.directions + 3 * i;
             Closest c;
-            uint32_t steps = 0, general = 0, tests = 0, culled = 0;
+            Counters count;
             const float tmin = rays.tmin[i * rays.tmin_stride];
             const float tmax = rays.tmax[i * rays.tmax_stride];
             if (scale == 1.0) {
-                trace_one<kBoxes>(tree, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin,
-                                  tmax, c, steps, general, tests, culled);
+                trace_one<kBoxes>(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin,
+                                  tmax, c, count);
             } else {
                 // Into the tree's scaled space: o and the range scale, d does not.
-                trace_one<kBoxes>(tree, Vec3(float(o[0] * scale), float(o[1] * scale),
+                trace_one<kBoxes>(view, Vec3(float(o[0] * scale), float(o[1] * scale),
                                              float(o[2] * scale)),
                                   Vec3(d[0], d[1], d[2]), float(tmin * scale),
-                                  float(tmax * scale), c, steps, general, tests, culled);
+                                  float(tmax * scale), c, count);
                 c.t = float(c.t * inv_scale);
                 if (!(c.t < tmax)) c.prim = -1;  // tmax * scale rounded up (or overflowed)
             }
@@ -271,28 +323,37 @@ void intersect_all(const Tree& tree, const RayBatch& rays, HitBatch& hits, int t
             hits.prim[i] = c.prim;
             hits.u[i] = hit ? c.u : 0.0f;
             hits.v[i] = hit ? c.v : 0.0f;
-            hits.steps[i] = steps;
-            hits.general_steps[i] = general;
-            hits.tests[i] = tests;
-            hits.culled[i] = culled;
+            count.store(hits, i);
         }
         if (progress) progress->add(units_per_ray * (end - begin));
     });
+}
+
+template <class Counters>
+void intersect_with(const Tree& tree, const RayBatch& rays, const HitBatch& hits, int threads,
+                    bool cull, Progress* progress) {
+    // One instantiation per box kind keeps the check out of the loop when off.
+    switch (cull ? tree.options.leaf_boxes : LeafBoxes::None) {
+        case LeafBoxes::None:
+            return intersect_all<LeafBoxes::None, Counters>(tree, rays, hits, threads, progress);
+        case LeafBoxes::Triangle:
+            return intersect_all<LeafBoxes::Triangle, Counters>(tree, rays, hits, threads,
+                                                                progress);
+        case LeafBoxes::Clipped:
+            return intersect_all<LeafBoxes::Clipped, Counters>(tree, rays, hits, threads,
+                                                               progress);
+    }
 }
 
 }  // namespace
 
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
                Progress* progress) {
-    // One instantiation per box kind keeps the check out of the loop when off.
-    switch (cull ? tree.options.leaf_boxes : LeafBoxes::None) {
-        case LeafBoxes::None:
-            return intersect_all<LeafBoxes::None>(tree, rays, hits, threads, progress);
-        case LeafBoxes::Triangle:
-            return intersect_all<LeafBoxes::Triangle>(tree, rays, hits, threads, progress);
-        case LeafBoxes::Clipped:
-            return intersect_all<LeafBoxes::Clipped>(tree, rays, hits, threads, progress);
-    }
+    const int given = (hits.steps != nullptr) + (hits.general_steps != nullptr) +
+                      (hits.tests != nullptr) + (hits.culled != nullptr);
+    if (given == 4) return intersect_with<CountEvery>(tree, rays, hits, threads, cull, progress);
+    if (given == 0) return intersect_with<CountNothing>(tree, rays, hits, threads, cull, progress);
+    throw std::invalid_argument("intersect: give all four counter arrays or none");
 }
 
 }  // namespace bsp

@@ -23,14 +23,17 @@ struct HitBatch {
     int32_t* prim;   // -1 on miss
     float* u;
     float* v;
-    uint32_t* steps;          // nodes visited, of every kind
-    uint32_t* general_steps;  // general (plane) nodes among them
-    uint32_t* tests;          // ray-triangle tests performed
-    uint32_t* culled;         // tests skipped by the segment-box check
+    // The counters: all four arrays, or all four null for the hits-only
+    // path, which is compiled without any counting (same hits, bit for bit).
+    uint32_t* steps = nullptr;          // nodes visited, of every kind
+    uint32_t* general_steps = nullptr;  // general (plane) nodes among them
+    uint32_t* tests = nullptr;          // ray-triangle tests performed
+    uint32_t* culled = nullptr;         // tests skipped by the segment-box check
 };
 
 // With `cull` (and boxes in the tree), a leaf skips the triangles whose box
-// misses the box of the ray's segment inside the leaf.
+// misses the box of the ray's segment inside the leaf. Throws
+// std::invalid_argument when only some of the counter arrays are given.
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
                Progress* progress = nullptr);
 

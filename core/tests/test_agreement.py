@@ -88,9 +88,12 @@ def test_hits_agree_with_embree(scene_id, method, k):
     hits = tree.intersect(o, d, cull=True)
     c = check_agreement(tris, o, d, hits, ref)
     assert c["same_prim"] > 0.2 * len(o) or scene_id == "gen:fan"
+    # The hits-only path, without culling: the other corner of the kernels.
+    check_agreement(tris, o, d, tree.intersect(o, d, counters=False), ref)
     o, d, ref = w["random"]
     hits = tree.intersect(o, d, cull=True)
     check_agreement(tris, o, d, hits, ref)
+    check_agreement(tris, o, d, tree.intersect(o, d, counters=False), ref)
     assert hits["culled"].sum() > 0 or scene_id == "gen:room"
     miss = hits["prim"] < 0
     assert np.isinf(hits["t"][miss]).all() and (hits["t"][~miss] > 0).all()

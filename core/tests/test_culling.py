@@ -110,7 +110,9 @@ def test_culling_is_off_unless_asked_for():
     assert tree.intersect(o, d, cull=True)["culled"].sum() > 0
     cam = scenes.default_camera("spheres")
     assert bsplab.render(tree, cam, 32, 24, "heat_culled")[1]["cull"] is True
-    assert bsplab.render(tree, cam, 32, 24, "shaded")[1]["mean_culled"] == 0
+    # Shaded counts only when asked (its default is the hits-only path).
+    shaded = bsplab.render(tree, cam, 32, 24, "shaded", counters=True)[1]
+    assert shaded["cull"] is False and shaded["mean_culled"] == 0
 
 
 def test_bad_culling_options():

@@ -51,6 +51,11 @@ def assert_agrees(scene_id: str, method: str, k: int | None, count: int) -> None
         if name in WELL_CONDITIONED:
             explained = c["grazing"] + c["at_ends"] + c["degenerate"]
             assert explained <= max(3, c["rays"] // 500), (name, explained)
+    # The hits-only path without culling (the check above counts, with culling).
+    for name, c in rays.check(tree, cull=False, counters=False).items():
+        assert len(c["unexplained"]) == 0, (
+            f"{scene_id} {method} k={k} hits-only: {len(c['unexplained'])} of {c['rays']} "
+            f"{name} rays disagree with Embree, e.g. rays {c['unexplained'][:4]}")
 
 
 def ks(method: str) -> list[int | None]:

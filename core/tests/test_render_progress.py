@@ -26,8 +26,14 @@ def test_every_mode_renders(room, mode):
     assert np.isfinite(image).all() and image.min() >= 0 and image.max() <= 1
     assert (image[..., 3] == 1).all()
     assert image[..., :3].std() > 0.01  # not a flat colour
-    assert stats["rays"] == 64 * 48 and stats["hits"] > 0
-    assert stats["mean_steps"] > 0 and stats["mean_tests"] > 0 and stats["rays_per_second"] > 0
+    assert stats["rays"] == 64 * 48 and stats["hits"] > 0 and stats["rays_per_second"] > 0
+    # Shaded, normal and depth trace on the hits-only path unless asked to
+    # count (test_hits_only.py compares the two paths).
+    assert stats["counters"] == (mode in bsplab.render.__globals__["HEAT_COUNTERS"])
+    if stats["counters"]:
+        assert stats["mean_steps"] > 0 and stats["mean_tests"] > 0
+    else:
+        assert stats["mean_steps"] is None and stats["mean_tests"] is None
 
 
 def test_render_matches_intersect(room):
