@@ -88,6 +88,28 @@ def make_rays(spec: Spec, data: SceneData, embree) -> dict:
     return {w: out[w] for w in spec.workloads}
 
 
+_reference_cache: dict = {}
+
+
+def scene_references(spec: Spec, scene: str, data: SceneData):
+    """Embree over the scene (None where it can't run here) and the
+    workloads' rays, made once per scene and ray settings: every cell of a
+    scene traces the same rays beside the same Embree, so building them per
+    cell would only repeat the work."""
+    from .. import oracle
+    # Not inside a Blender whose own Embree clashes with embreex's.
+    usable = oracle.available() and oracle.foreign_embree_library() is None
+    key = (scene, usable, spec.width, spec.height, tuple(spec.workloads), spec.ao_samples,
+           spec.ao_distance, spec.random_rays)
+    cached = _reference_cache.get(key)
+    if cached is None or cached[0] is not data:  # the same triangles and camera
+        embree = oracle.EmbreeTracer(data.triangles) if usable else None
+        _reference_cache.clear()  # one scene at a time: the big ones are 10 MB+
+        cached = _reference_cache[key] = (data, embree,
+                                          make_rays(spec, data, embree))
+    return cached[1], cached[2]
+
+
 _kd_cache: dict = {}
 
 
@@ -120,13 +142,10 @@ def _tracers(tree, kd, embree, spec: Spec, o, d, tmax) -> dict[str, Tracer]:
 def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
              progress=None) -> list[dict]:
     """Builds the cell's tree and traces every workload; one row per workload."""
-    from .. import Cancelled, build, oracle
+    from .. import Cancelled, build
     data = scene_data or load_scene(cell.scene)
     tris = data.triangles
-    # Not inside a Blender whose own Embree clashes with embreex's.
-    usable = oracle.available() and oracle.foreign_embree_library() is None
-    embree = oracle.EmbreeTracer(tris) if usable else None
-    rays = make_rays(spec, data, embree)
+    embree, rays = scene_references(spec, cell.scene, data)
     tree = build(tris, method=cell.method, threads=spec.build_threads, progress=progress,
                  **build_options(spec, cell.method, cell.k, cell.seed, cell.variant))
     # A kd cell is its own reference, unless a variant made it another kd-tree.

@@ -269,7 +269,7 @@ PAIRED = ("Every time is measured with the lab's one protocol, paired rounds "
 # What the columns of each benchmark's tables are.
 BENCH_COLUMNS = ("`× Embree` is our time over Embree's (below 1 is faster than Embree); "
                  "`build × Embree` our build time over Embree's (embreex's BVH build, "
-                 "measured once per cell). `embreex` traces on one thread, and so do we here.")
+                 "measured once per scene). `embreex` traces on one thread, and so do we here.")
 
 FAMILY_COLUMNS = ("`time % kd` is the tree's time over the kd-tree's traced beside it "
                   "(below 100 is faster than kd), min–max over the repetitions; `× Embree` "
