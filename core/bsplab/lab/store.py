@@ -13,7 +13,6 @@ import sys
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
@@ -197,7 +196,3 @@ _EXPECTED = {"text": "text", "int": "a whole number", "int?": "a whole number or
              "number": "a number", "ints": "whole numbers separated by spaces",
              "numbers": "numbers separated by spaces",
              "numbers?": "numbers separated by spaces, or nothing"}
-
-
-def iter_times(value: str) -> Iterable[float]:
-    return (float(x) for x in value.split()) if value else ()
