@@ -5,10 +5,11 @@ from . import _core, oracle
 from ._core import Cancelled, Progress
 from .camera import Camera
 from .checks import triangles as check_triangles
+from .cpu import cpu_features
 from .method_table import methods, option_schema
 from .render import RENDER_MODES, render
 from .tree import Tree, build
 
 __version__ = "0.1.0"
 __all__ = ["Camera", "Cancelled", "Progress", "RENDER_MODES", "Tree", "build",
-           "check_triangles", "methods", "option_schema", "oracle", "render", "_core"]
+           "check_triangles", "cpu_features", "methods", "option_schema", "oracle", "render", "_core"]

@@ -15,6 +15,7 @@
 
 #include "bsp_build.hpp"
 #include "cell.hpp"
+#include "cpu_dispatch.hpp"
 #include "kd_build.hpp"
 #include "memory.hpp"
 #include "registry.hpp"
@@ -317,6 +318,17 @@ NB_MODULE(_core, m) {
             return nb::make_tuple(c.area(), out);
         },
         "lo"_a, "hi"_a, "cuts"_a, "u"_a, "ts"_a, "Surface areas of cut cells (for tests).");
+    m.def(
+        "cpu_features",
+        [] {
+            const bsp::CpuFeatures& f = bsp::cpu_features();
+            nb::dict d;
+            d["supported"] = f.supported;
+            d["selected"] = f.selected;
+            d["forced"] = f.forced.empty() ? nb::none() : nb::object(nb::str(f.forced.c_str()));
+            return d;
+        },
+        "The kernels' instruction-set levels: supported here, selected, forced by BSPLAB_ISA.");
     m.def("registry", &registry, "The methods, options and strategies of registry.hpp.");
     m.def(
         "options_for",

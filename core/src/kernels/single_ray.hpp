@@ -1,0 +1,302 @@
+// The single-ray kernel: front-to-back traversal of kd and general nodes
+// with early exit (pbrt-v3 / Havran style), a small per-ray mailbox, and the
+// watertight triangle test. Included by kernels/trace_kernels.cpp only, inside
+// the namespace of one instruction-set level (BSPLAB_ISA_NS), with internal
+// linkage: every level gets its own copy, and none leaks into another.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "../traverse.hpp"
+#include "../triangle.hpp"
+#include "tree_view.hpp"
+
+#ifndef BSPLAB_ISA_NS
+#error "single_ray.hpp is compiled per instruction set: include it from trace_kernels.cpp"
+#endif
+
+namespace bsp::BSPLAB_ISA_NS {
+namespace {
+
+// A triangle referenced by several leaves is tested once per ray: a small
+// direct-mapped table of the last triangles tested. A collision only costs a
+// repeated test, never a wrong answer, because the closest hit is kept
+// whichever leaf found it.
+struct Mailbox {
+    static constexpr uint32_t kSize = 16;
+    uint32_t slot[kSize];
+    Mailbox() { std::fill(slot, slot + kSize, 0xFFFFFFFFu); }
+    bool seen(uint32_t prim) {
+        uint32_t& s = slot[prim & (kSize - 1)];
+        if (s == prim) return true;
+        s = prim;
+        return false;
+    }
+};
+
+struct Closest {
+    float t;
+    int32_t prim = -1;
+    float u = 0, v = 0;
+};
+
+// Clips [t0, t1] to the box; false when the ray misses it.
+bool clip_to_box(const Box& b, const Vec3& o, const Vec3& inv, const Vec3& d, float& t0,
+                 float& t1) {
+    for (int k = 0; k < 3; ++k) {
+        if (d[k] == 0.0f) {
+            if (o[k] < b.lo[k] || o[k] > b.hi[k]) return false;
+            continue;
+        }
+        float tn = (b.lo[k] - o[k]) * inv[k];
+        float tf = (b.hi[k] - o[k]) * inv[k];
+        if (tn > tf) std::swap(tn, tf);
+        tf *= 1.0f + 4.0f * std::numeric_limits<float>::epsilon();  // never lose the far side
+        t0 = std::max(t0, tn);
+        t1 = std::min(t1, tf);
+        if (t0 > t1) return false;
+    }
+    return true;
+}
+
+struct StackEntry {
+    uint32_t node;
+    float tmin, tmax;
+};
+
+// The box of the ray's segment o + [t0, t1] d, padded so that no float error
+// of the end points (or of the traversal's plane crossings, which the
+// builders' fattening already bounds by tree.cull_pad / 2) can cull a hit.
+// An end point's error is relative to the terms it is summed from, |o| and
+// |t d|, not to the point itself: a ray from far away has |o| >> |o + t d|.
+struct SegmentBox {
+    float lo[3], hi[3];
+    void set(const float* org, const float* dir, float t0, float t1, float pad) {
+        const float tmag = std::max(std::fabs(t0), std::fabs(t1));
+        for (int k = 0; k < 3; ++k) {
+            const float a = org[k] + t0 * dir[k], b = org[k] + t1 * dir[k];
+            const float p =
+                pad + (std::fabs(org[k]) + tmag * std::fabs(dir[k])) * (1.0f / (1 << 20));
+            lo[k] = std::min(a, b) - p;
+            hi[k] = std::max(a, b) + p;
+        }
+    }
+    bool misses(const Box& b) const {
+        return b.lo.x > hi[0] || b.hi.x < lo[0] || b.lo.y > hi[1] || b.hi.y < lo[1] ||
+               b.lo.z > hi[2] || b.hi.z < lo[2];
+    }
+};
+
+// The counters are a compile-time policy of the traversal: CountEvery keeps
+// the heatmaps' and the statistics' counts of one ray, CountNothing is the
+// hits-only path, whose empty increments leave no counting code behind.
+struct CountEvery {
+    uint32_t steps = 0, general_steps = 0, tests = 0, culled = 0;
+    void step() { ++steps; }
+    void general_step() { ++general_steps; }
+    void test() { ++tests; }
+    void cull() { ++culled; }
+    void store(const HitBatch& hits, size_t i) const {
+        hits.steps[i] = steps;
+        hits.general_steps[i] = general_steps;
+        hits.tests[i] = tests;
+        hits.culled[i] = culled;
+    }
+};
+
+struct CountNothing {
+    void step() {}
+    void general_step() {}
+    void test() {}
+    void cull() {}
+    void store(const HitBatch&, size_t) const {}
+};
+
+template <LeafBoxes kBoxes, class Counters>
+void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+               Closest& hit, Counters& count) {
+    hit.t = tmax;
+    const Vec3 inv(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
+    float t0 = tmin, t1 = tmax;
+    if (!clip_to_box(tree.bounds, o, inv, d, t0, t1)) return;
+
+    // Plain arrays: the axis is a run-time index in the hot loop.
+    const float org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
+    const float idir[3] = {inv.x, inv.y, inv.z};
+    const ShearedRay sray(o, d);
+    // Locals, so that the hot loop keeps them in registers.
+    const Node* nodes = tree.nodes;
+    const Plane* planes = tree.planes;
+    const uint32_t* refs = tree.refs;
+    const Triangle* tris = tree.tris;
+    const Box* boxes = tree.boxes;
+    const bool inline_single = tree.inline_single;
+    // A general plane's crossing is off by a few roundings of the terms it
+    // is computed from: the plane offset (at most a few scene coordinates),
+    // n.o (at most |o|_1, n being unit) and t n.d (at most |t| |d|_1).
+    // The traversal widens it to [t - err, t + err] with
+    //   err = (cross_a + |t| cross_b) / |n.d|,
+    // so a ray from far away never skips a cell it passes through.
+    // kd nodes need no widening: their crossings are computed exactly like
+    // the scene box's and each other's, so their order is always consistent.
+    constexpr float kCrossUlps = 1.0f / (1 << 20);  // 16 roundings of 2^-24
+    const float cross_a =
+        kCrossUlps * (tree.two_scene_scale + std::fabs(o.x) + std::fabs(o.y) + std::fabs(o.z));
+    const float cross_b = kCrossUlps * (std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z));
+    Mailbox mailbox;
+    StackEntry stack[72];
+    int top = 0;
+    uint32_t index = 0;
+
+    for (;;) {
+        if (hit.t < t0) {
+            // This cell lies beyond the closest hit. Cells deeper in the stack
+            // usually lie beyond it too, but not always (a ray in a plane
+            // visits both sides over its whole range), so keep popping.
+            if (top == 0) break;
+            --top;
+            index = stack[top].node;
+            t0 = stack[top].tmin;
+            t1 = stack[top].tmax;
+            continue;
+        }
+        const Node node = nodes[index];
+        count.step();
+        if (!node.is_leaf()) {
+            // Both kinds reduce to: where the ray crosses the plane, and
+            // which child it enters from. Before the crossing the ray is on
+            // the side it moves away from (the entry side), after it on the
+            // side it moves towards. Deciding by the direction's sign rather
+            // than by the origin's side keeps every case consistent,
+            // including rays parallel to the plane (t = +-inf) and rays lying
+            // in it (t = NaN: both sides).
+            float tplane, err = 0.0f;
+            bool down;  // the ray moves towards the child below the plane
+            uint32_t above_child;
+            if (node.is_kd()) {
+                const int axis = node.axis();
+                tplane = (node.split - org[axis]) * idir[axis];
+                down = std::signbit(dir[axis]);
+                above_child = node.kd_above();
+            } else {
+                count.general_step();
+                const Plane& p = planes[node.first];
+                const float no = p.nx * org[0] + p.ny * org[1] + p.nz * org[2];
+                const float nd = p.nx * dir[0] + p.ny * dir[1] + p.nz * dir[2];
+                // A reciprocal, as for kd nodes and the scene box: a general
+                // node whose plane is an axis plane then gives bit-identical
+                // crossings to the box clip and to kd nodes at the same
+                // position. With a division, a wall lying in the scene box's
+                // face could be crossed an ulp before the box is entered, and
+                // its flat cell skipped.
+                const float inv_nd = 1.0f / nd;
+                tplane = (p.d - no) * inv_nd;
+                // An axis plane's crossing is computed exactly like a kd
+                // node's (the zero terms of n.o and n.dir are exact), so it
+                // needs no widening either. Parallel to a general plane
+                // (t = +-inf): on the origin's side for good, unless the
+                // origin lies within the error of the plane.
+                const bool axis_plane = (p.nx == 0.0f) + (p.ny == 0.0f) + (p.nz == 0.0f) == 2;
+                err = axis_plane ? 0.0f
+                      : nd != 0.0f ? (cross_a + std::fabs(tplane) * cross_b) * std::fabs(inv_nd)
+                      : std::fabs(p.d - no) > cross_a ? 0.0f
+                                                      : std::numeric_limits<float>::quiet_NaN();
+                down = std::signbit(nd);
+                above_child = node.general_above();
+            }
+            const uint32_t entry = down ? above_child : index + 1;
+            const uint32_t exit = down ? index + 1 : above_child;
+            // The exact crossing lies in [t_lo, t_hi]; for kd nodes t_lo = t_hi.
+            const float t_lo = tplane - err, t_hi = tplane + err;
+            if (!(t_lo <= t_hi)) {
+                // NaN: the ray lies in the plane, and either side may hold its hit.
+                stack[top++] = {exit, t0, t1};
+                index = entry;
+            } else if (t_lo > t1) {
+                index = entry;  // crosses beyond this cell's range
+            } else if (t_hi < t0) {
+                index = exit;   // crossed before it (or behind the origin)
+            } else {
+                stack[top++] = {exit, std::max(t0, t_lo), t1};
+                index = entry;
+                t1 = std::min(t1, t_hi);
+            }
+            continue;
+        }
+        const uint32_t n_refs = node.count();
+        const uint32_t* list =
+            n_refs == 1 && inline_single ? &nodes[index].first : refs + node.first;
+        SegmentBox seg;
+        if constexpr (kBoxes != LeafBoxes::None)
+            seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+        for (uint32_t i = 0; i < n_refs; ++i) {
+            const uint32_t p = list[i];
+            if constexpr (kBoxes != LeafBoxes::None) {
+                // A culled triangle is not marked in the mailbox: it may
+                // still be hit in a later leaf that references it.
+                const Box& b = boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
+                if (seg.misses(b)) {
+                    count.cull();
+                    continue;
+                }
+            }
+            if (mailbox.seen(p)) continue;
+            count.test();
+            TriangleHit th;
+            if (intersect_triangle(sray, tris[p], tmin, hit.t, th)) {
+                hit.t = th.t;
+                hit.prim = int32_t(p);
+                hit.u = th.u;
+                hit.v = th.v;
+                if constexpr (kBoxes != LeafBoxes::None)
+                    seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+            }
+        }
+        // Early exit: the loop's head skips every cell that starts beyond
+        // the closest hit. (Not `hit.t <= t1` here: with widened crossings,
+        // and for rays in a plane, a cell still on the stack may start
+        // before this one ends.)
+        if (top == 0) break;
+        --top;
+        index = stack[top].node;
+        t0 = stack[top].tmin;
+        t1 = stack[top].tmax;
+    }
+}
+
+// Traces rays [begin, end) one by one (see kernel_set.hpp).
+template <LeafBoxes kBoxes, class Counters>
+void trace_single_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                       size_t begin, size_t end) {
+    const double scale = view.scale, inv_scale = 1.0 / view.scale;
+    for (size_t i = begin; i < end; ++i) {
+        const float* o = rays.origins + 3 * i;
+        const float* d = rays.directions + 3 * i;
+        Closest c;
+        Counters count;
+        const float tmin = rays.tmin[i * rays.tmin_stride];
+        const float tmax = rays.tmax[i * rays.tmax_stride];
+        if (scale == 1.0) {
+            trace_one<kBoxes>(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax,
+                              c, count);
+        } else {
+            // Into the tree's scaled space: o and the range scale, d does not.
+            trace_one<kBoxes>(view,
+                              Vec3(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale)),
+                              Vec3(d[0], d[1], d[2]), float(tmin * scale), float(tmax * scale), c,
+                              count);
+            c.t = float(c.t * inv_scale);
+            if (!(c.t < tmax)) c.prim = -1;  // tmax * scale rounded up (or overflowed)
+        }
+        const bool hit = c.prim >= 0;
+        hits.t[i] = hit ? c.t : kInf;
+        hits.prim[i] = c.prim;
+        hits.u[i] = hit ? c.u : 0.0f;
+        hits.v[i] = hit ? c.v : 0.0f;
+        count.store(hits, i);
+    }
+}
+
+}  // namespace
+}  // namespace bsp::BSPLAB_ISA_NS

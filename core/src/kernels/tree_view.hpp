@@ -1,0 +1,47 @@
+// What the traversal of one tree reads for every ray, gathered once per batch
+// by the dispatching code and handed to the kernels of every instruction set.
+#pragma once
+#include <algorithm>
+#include <cmath>
+
+#include "tree.hpp"
+
+namespace bsp {
+
+struct TreeView {
+    const Node* nodes;
+    const Plane* planes;
+    const uint32_t* refs;
+    const Triangle* tris;
+    const Box* boxes;
+    Box bounds;
+    float cull_pad;
+    // Trees with a box per reference keep one-triangle leaves in refs[] too.
+    bool inline_single;
+    // The scene's part of a general plane's crossing error (see cross_a in
+    // trace_one): twice the largest coordinate of the scene box.
+    float two_scene_scale;
+    // Rays and distances go into the tree's scaled space and back.
+    double scale;
+    LeafBoxes leaf_boxes;
+};
+
+inline TreeView make_tree_view(const Tree& tree) {
+    const Box& b = tree.bounds;
+    const float scene_scale =
+        std::max({std::fabs(b.lo.x), std::fabs(b.lo.y), std::fabs(b.lo.z), std::fabs(b.hi.x),
+                  std::fabs(b.hi.y), std::fabs(b.hi.z)});
+    return TreeView{tree.nodes.data(),
+                    tree.planes.data(),
+                    tree.refs.data(),
+                    tree.triangles.data(),
+                    tree.boxes.data(),
+                    tree.bounds,
+                    tree.cull_pad,
+                    tree.options.leaf_boxes != LeafBoxes::Clipped,
+                    2.0f * scene_scale,
+                    tree.scale,
+                    tree.options.leaf_boxes};
+}
+
+}  // namespace bsp

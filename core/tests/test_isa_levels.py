@@ -1,0 +1,113 @@
+"""The tracing kernels of every instruction-set level (core/src/kernels/,
+compiled once per level, chosen at run time by core/src/cpu_dispatch.cpp).
+
+Each level this CPU supports is forced in a subprocess with BSPLAB_ISA and
+must give the same hits as the level chosen here, bit for bit, for every
+method, ray family, range, counters and culling setting - so the agreement
+matrix against Embree, which runs on the chosen level, holds for every
+level. (The levels are the same arithmetic: -ffp-contract=off, no fused
+multiply-add.)"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import bsplab
+
+LEVELS = ("sse2", "avx2", "avx512")
+SUPPORTED = bsplab.cpu_features()["supported"]
+
+# Run in a subprocess with BSPLAB_ISA set: writes every case's hits to an .npz.
+CASES_SCRIPT = r"""
+import sys, json
+import numpy as np
+sys.path.insert(0, sys.argv[2])
+import bsplab
+from test_isa_levels import cases
+out = {}
+for name, hits in cases():
+    for key, value in hits.items():
+        out[name + "/" + key] = value
+np.savez(sys.argv[1], **out)
+print(json.dumps(bsplab.cpu_features()))
+"""
+
+
+@functools.lru_cache(maxsize=1)
+def expected_hits() -> dict:
+    return {f"{name}/{k}": v for name, hits in cases() for k, v in hits.items()}
+
+
+def cases():
+    """(name, hits) of every kernel variant on a few trees and ray families."""
+    from bsplab import ray_families, scenes, workloads
+    # Small scenes: every method's tree in well under a second.
+    for scene in ("room", "tilted", "grids"):
+        tris = scenes.generate(scene)
+        parts = [ray_families.family(f, tris, 300, 5) for f in ray_families.FAMILIES]
+        o, d, tmax = (np.concatenate(x) for x in zip(*parts))
+        po, pd = workloads.primary_rays(tris, 48, 40)
+        for method in ("kd", "rbsp", "bsp_wn+kd", "bsp_cn", "bsp_ize+kd"):
+            tree = bsplab.build(tris, method=method)
+            for cull in (False, True):
+                for counters in (False, True):
+                    tag = f"{scene}/{method}/cull={cull}/counters={counters}"
+                    yield tag + "/families", tree.intersect(o, d, tmax=tmax, cull=cull,
+                                                            counters=counters, threads=1)
+                    yield tag + "/primary", tree.intersect(po, pd, cull=cull,
+                                                           counters=counters, threads=1)
+
+
+def run_level(level: str, tmp_path: Path) -> tuple[dict, dict]:
+    out = tmp_path / f"{level}.npz"
+    env = dict(os.environ, BSPLAB_ISA=level)
+    proc = subprocess.run([sys.executable, "-c", CASES_SCRIPT, str(out),
+                           str(Path(__file__).parent)],
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    features = json.loads(proc.stdout.strip().splitlines()[-1])
+    with np.load(out) as data:
+        return features, {k: data[k] for k in data.files}
+
+
+def test_cpu_features_describe_this_process():
+    f = bsplab.cpu_features()
+    assert f["supported"][0] == "sse2", "every x86-64 CPU runs the baseline"
+    assert all(level in LEVELS for level in f["supported"])
+    assert f["selected"] in f["supported"]
+    if os.environ.get("BSPLAB_ISA"):
+        assert f["forced"] == f["selected"] == os.environ["BSPLAB_ISA"]
+    else:
+        assert f["forced"] is None and f["selected"] == f["supported"][-1]
+
+
+@pytest.mark.parametrize("value, message", [("avx9000", "unknown level"), ("SSE2", "unknown level")])
+def test_a_bad_level_is_a_clear_error(value, message):
+    proc = subprocess.run([sys.executable, "-c", "import bsplab; bsplab.cpu_features()"],
+                          env=dict(os.environ, BSPLAB_ISA=value), capture_output=True, text=True)
+    assert proc.returncode != 0
+    assert f"BSPLAB_ISA={value}: {message}" in proc.stderr
+
+
+@pytest.mark.parametrize("level", LEVELS)
+def test_every_level_gives_the_same_hits(level, tmp_path):
+    if level not in SUPPORTED:
+        pytest.skip(f"this CPU lacks {level} (supported: {SUPPORTED})")
+    features, got = run_level(level, tmp_path)
+    assert features["selected"] == level and features["forced"] == level
+    expected = expected_hits()
+    assert got.keys() == expected.keys()
+    hits = 0
+    for key, value in expected.items():
+        assert np.array_equal(value.view(np.uint8), got[key].view(np.uint8)), (
+            f"{level}: {key} differs on {int((value != got[key]).sum())} rays")
+        hits += int((value >= 0).sum()) if key.endswith("/prim") else 0
+    assert hits > 10_000  # the cases hit something
