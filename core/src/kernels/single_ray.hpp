@@ -113,6 +113,43 @@ struct CountNothing {
     void store(const HitBatch&, size_t) const {}
 };
 
+// Tests the triangles of leaf `index` (node `node`) over the ray's range
+// [t0, t1] in it, keeping the closest hit in `hit`.
+template <LeafBoxes kBoxes, class Counters>
+inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
+                           const float org[3], const float dir[3], float t0, float t1, float tmin,
+                           Mailbox& mailbox, Closest& hit, Counters& count) {
+    const uint32_t n_refs = node.count();
+    const uint32_t* list =
+        n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
+    SegmentBox seg;
+    if constexpr (kBoxes != LeafBoxes::None)
+        seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+    for (uint32_t i = 0; i < n_refs; ++i) {
+        const uint32_t p = list[i];
+        if constexpr (kBoxes != LeafBoxes::None) {
+            // A culled triangle is not marked in the mailbox: it may
+            // still be hit in a later leaf that references it.
+            const Box& b = tree.boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
+            if (seg.misses(b)) {
+                count.cull();
+                continue;
+            }
+        }
+        if (mailbox.seen(p)) continue;
+        count.test();
+        TriangleHit th;
+        if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th)) {
+            hit.t = th.t;
+            hit.prim = int32_t(p);
+            hit.u = th.u;
+            hit.v = th.v;
+            if constexpr (kBoxes != LeafBoxes::None)
+                seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+        }
+    }
+}
+
 template <LeafBoxes kBoxes, class Counters>
 void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                Closest& hit, Counters& count) {
@@ -128,10 +165,6 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     // Locals, so that the hot loop keeps them in registers.
     const Node* nodes = tree.nodes;
     const Plane* planes = tree.planes;
-    const uint32_t* refs = tree.refs;
-    const Triangle* tris = tree.tris;
-    const Box* boxes = tree.boxes;
-    const bool inline_single = tree.inline_single;
     // A general plane's crossing is off by a few roundings of the terms it
     // is computed from: the plane offset (at most a few scene coordinates),
     // n.o (at most |o|_1, n being unit) and t n.d (at most |t| |d|_1).
@@ -224,35 +257,8 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
             }
             continue;
         }
-        const uint32_t n_refs = node.count();
-        const uint32_t* list =
-            n_refs == 1 && inline_single ? &nodes[index].first : refs + node.first;
-        SegmentBox seg;
-        if constexpr (kBoxes != LeafBoxes::None)
-            seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
-        for (uint32_t i = 0; i < n_refs; ++i) {
-            const uint32_t p = list[i];
-            if constexpr (kBoxes != LeafBoxes::None) {
-                // A culled triangle is not marked in the mailbox: it may
-                // still be hit in a later leaf that references it.
-                const Box& b = boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
-                if (seg.misses(b)) {
-                    count.cull();
-                    continue;
-                }
-            }
-            if (mailbox.seen(p)) continue;
-            count.test();
-            TriangleHit th;
-            if (intersect_triangle(sray, tris[p], tmin, hit.t, th)) {
-                hit.t = th.t;
-                hit.prim = int32_t(p);
-                hit.u = th.u;
-                hit.v = th.v;
-                if constexpr (kBoxes != LeafBoxes::None)
-                    seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
-            }
-        }
+        intersect_leaf<kBoxes>(tree, node, index, sray, org, dir, t0, t1, tmin, mailbox, hit,
+                               count);
         // Early exit: the loop's head skips every cell that starts beyond
         // the closest hit. (Not `hit.t <= t1` here: with widened crossings,
         // and for rays in a plane, a cell still on the stack may start
