@@ -46,6 +46,7 @@ test-cpp:
 	bash core/cpp_tests/run.sh
 
 test-core: core
+	bash core/tools/ensure_qemu_user.sh
 	$(BIN)/python -m pytest -q core/tests
 
 # The core built with AddressSanitizer + UndefinedBehaviorSanitizer in folders

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -111,3 +112,33 @@ def test_every_level_gives_the_same_hits(level, tmp_path):
             f"{level}: {key} differs on {int((value != got[key]).sum())} rays")
         hits += int((value >= 0).sum()) if key.endswith("/prim") else 0
     assert hits > 10_000  # the cases hit something
+
+
+# Slow under emulation, and outside the sanitizer run (QEMU cannot host ASan's shadow memory).
+@pytest.mark.slow
+def test_runs_on_a_cpu_with_only_sse2(tmp_path):
+    """The module's every part - builders, dispatch, the baseline kernels -
+    on an emulated x86-64 CPU without AVX (QEMU's qemu64 model: SSE2, SSE3;
+    it raises SIGILL on any AVX instruction): the dispatch must choose sse2,
+    nothing may use a newer instruction outside the kernels of a higher level,
+    and the hits must be the native ones. QEMU user mode comes from Debian's
+    qemu-user (.ci/run installs it; CI fails rather than skips without it)."""
+    qemu = shutil.which("qemu-x86_64")
+    if qemu is None:
+        if os.environ.get("CI"):
+            pytest.fail("qemu-x86_64 is missing (apt-get install qemu-user)")
+        pytest.skip("qemu-x86_64 not installed (apt-get install qemu-user)")
+    out = tmp_path / "qemu64.npz"
+    env = {k: v for k, v in os.environ.items() if k != "BSPLAB_ISA"}
+    proc = subprocess.run([qemu, "-cpu", "qemu64", sys.executable, "-c", CASES_SCRIPT, str(out),
+                           str(Path(__file__).parent)],
+                          env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    features = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert features["supported"] == ["sse2"] and features["selected"] == "sse2"
+    with np.load(out) as data:
+        got = {k: data[k] for k in data.files}
+    expected = expected_hits()
+    assert got.keys() == expected.keys()
+    for key, value in expected.items():
+        assert np.array_equal(value.view(np.uint8), got[key].view(np.uint8)), key
