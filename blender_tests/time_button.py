@@ -1,0 +1,108 @@
+"""Button-to-preview time in Blender: the add-on's Build & Render pressed on a
+shared mesh, timed from the press to the image block written.
+
+    blender_tests/time_button.sh [--scene conference] [--preview 50] [--presses 5]
+
+Blender's own PLY importer reads /work/shared/scenes/<scene>.ply (or
+$BSPLAB_SHARED_SCENES), a camera frames it as the lab's primary rays do
+(`bsplab.workloads.framing_camera`), render resolution 1920 x 1080 at
+--preview percent. Each press builds the tree and renders the preview
+(shaded, no Embree comparison); the script prints every press's wall time
+and the panel's build/render times, then the median. Runs on the bpy module
+(time_button.sh sets it up like the demo) or a Blender binary:
+    BSPLAB_PYTHONPATH=build/blender-deps blender -b --factory-startup \\
+        --python blender_tests/time_button.py -- --scene conference
+"""
+
+import argparse
+import os
+import pathlib
+import statistics
+import sys
+import time
+
+import bpy
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "addon"))
+import demo_headless  # noqa: E402  (the add-on loader)
+
+
+def parse_args():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    p = argparse.ArgumentParser(prog="time_button.py")
+    p.add_argument("--scene", default="conference")
+    p.add_argument("--preview", type=int, default=50)
+    p.add_argument("--presses", type=int, default=5)
+    p.add_argument("--method", default="kd")
+    return p.parse_args(argv)
+
+
+def import_scene(path):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if hasattr(bpy.ops.wm, "ply_import"):
+        bpy.ops.wm.ply_import(filepath=str(path))
+    else:  # Blender 3.x: the legacy Python importer
+        bpy.ops.import_mesh.ply(filepath=str(path))
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 1920, 1080
+    return scene
+
+
+def add_camera(scene, triangles):
+    import bsplab.workloads
+    cam = bsplab.workloads.framing_camera(triangles)
+    data = bpy.data.cameras.new("Camera")
+    data.lens, data.sensor_width, data.sensor_height = cam.lens, cam.sensor_width, cam.sensor_height
+    data.clip_start, data.clip_end = 1e-4, 1e6
+    obj = bpy.data.objects.new("Camera", data)
+    scene.collection.objects.link(obj)
+    import mathutils
+    obj.matrix_world = mathutils.Matrix([list(row) for row in cam.matrix_world])
+    scene.camera = obj
+    bpy.context.view_layer.update()
+
+
+def main():
+    args = parse_args()
+    for entry in reversed(os.environ.get("BSPLAB_PYTHONPATH", "").split(os.pathsep)):
+        if entry and entry not in sys.path:
+            sys.path.insert(0, entry)
+    import bsplab
+    from bsplab import io, workloads
+    shared = workloads.shared_scenes_dir()
+    if shared is None:
+        print("time_button: no shared scenes folder", file=sys.stderr)
+        return 2
+    path = shared / f"{args.scene}.ply"
+    scene = import_scene(path)
+    add_camera(scene, io.load_mesh(path))
+    addon = demo_headless.load_addon()
+    if not hasattr(bpy.types.Scene, "bsplab"):
+        addon.register()
+    settings = scene.bsplab
+    settings.method = args.method
+    settings.render_mode = "shaded"
+    settings.preview_percentage = args.preview
+    settings.compare_with_embree = False
+    print(f"time_button: Blender {bpy.app.version_string}, {args.scene}, {args.method}, "
+          f"{args.preview}% of 1920x1080, kernels {bsplab.cpu_features()['selected']}")
+    walls = []
+    for press in range(args.presses):
+        start = time.perf_counter()
+        bpy.ops.bsplab.build_render()
+        walls.append(time.perf_counter() - start)
+        stats = settings.stats
+        print(f"  press {press + 1}: {walls[-1]:.3f} s  "
+              f"(panel: build {stats['build']['build_seconds']:.3f} s, "
+              f"render {stats['render']['seconds']:.3f} s)", flush=True)
+    print(f"time_button: median {statistics.median(walls):.3f} s over {len(walls)} presses")
+    return 0
+
+
+if __name__ == "__main__":
+    code = main()
+    sys.stdout.flush()
+    if not bpy.app.binary_path:
+        os._exit(code)  # the bpy module can crash in static destructors at exit
+    sys.exit(code)
