@@ -298,8 +298,8 @@ BENCH_COLUMNS = (
     "Embree's: `wrong hits` counts the rays on which any path's answer differs from "
     "Embree's beyond ties and grazing edges (it must be 0), `grazing` the counters "
     "path's grazing rays. In the build table, `build × Embree` is our build time over "
-    "Embree's (embreex's BVH build, measured once per scene), `B/tri` the tree's bytes "
-    "per triangle.")
+    "Embree's (embreex's mesh set-up and BVH build, measured once per scene), `B/tri` "
+    "the tree's bytes per triangle.")
 
 FAMILY_COLUMNS = ("`time % kd` is the tree's time over the kd-tree's traced beside it "
                   "(below 100 is faster than kd), min–max over the repetitions; `× Embree` "
