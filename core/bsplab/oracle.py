@@ -58,6 +58,9 @@ class EmbreeTracer:
         vertices = tris.reshape(-1, 3)
         faces = np.arange(len(vertices), dtype=np.int32).reshape(-1, 3)
         self._mesh = TriangleMesh(self.scene, vertices, faces)
+        # embreex commits the scene (builds Embree's BVH) on its first query:
+        # one ray here puts that build in build_seconds, not in the first trace.
+        self.scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), output=1)
         self.build_seconds = time.perf_counter() - start
         self.last_seconds = 0.0
 

@@ -170,6 +170,7 @@ def test_older_specs_keep_their_fingerprint():
     ({"variants": [{}, {}]}, "variants: '' is listed twice"),
     ({"method_variants": {"kdd": [{}]}}, "method_variants: unknown method 'kdd'"),
     ({"cull": "yes"}, "cull must be true or false, got a string"),
+    ({"hits_only": 1}, "hits_only must be true or false, got a number"),
     ({"random_rays": 0}, "random_rays must be an integer in 1..100000000"),
 ])
 def test_bad_benchmark_keys_say_what_is_wrong(changes, message):
@@ -214,6 +215,30 @@ def _ratio(cell: str) -> float:
     return value
 
 
+def _records(md: str, heading: str) -> list[dict[str, str]]:
+    """The rows of the first table after `heading`, by column name."""
+    lines = md.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(heading))
+    header = next(line for line in lines[start + 1:] if line.startswith("|"))
+    names = [c.strip() for c in header.strip("|").split("|")]
+    return [dict(zip(names, r, strict=True)) for r in _table(md, heading)]
+
+
+def _speed(cell: str) -> float:
+    """A `× Embree speed` cell, `median (min–max)`: the median, checked to lie
+    in its spread."""
+    med, spread = cell.split(" (")
+    lo, hi = spread.rstrip(")").split("–")
+    assert _ratio(lo) <= _ratio(med) <= _ratio(hi), cell
+    return _ratio(med)
+
+
+def _csv_rows(path: Path) -> list[dict]:
+    import csv
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
 def test_bench_writes_a_row_per_scene_and_method(tmp_path):
     from bsplab.lab import benchmarks
     out = tmp_path / "benchmark.md"
@@ -221,20 +246,97 @@ def test_bench_writes_a_row_per_scene_and_method(tmp_path):
                             repeats=2) == 0
     md = out.read_text()
     assert "paired" in md and "median" in md  # the header says how times were taken
-    build = _table(md, "## Build")
-    assert [(r[0], r[2]) for r in build] == [("fan", "kd"), ("fan", "bsp_wn+kd"),
-                                             ("room", "kd"), ("room", "bsp_wn+kd")]
-    for heading, rays in (("## Primary rays", "144"), ("## Random rays", "300")):
-        rows = _table(md, heading)
-        assert [(r[0], r[1]) for r in rows] == [(r[0], r[2]) for r in build]
+    data = _csv_rows(tmp_path / "data" / "benchmark.csv")
+    assert len(data) == 2 * 2 * 2
+    build = _records(md, "## Build")
+    assert [(r["scene"], r["method"]) for r in build] == [
+        ("fan", "kd"), ("fan", "bsp_wn+kd"), ("room", "kd"), ("room", "bsp_wn+kd")]
+    for r in build:  # the tree's size per triangle, from its bytes
+        row = next(d for d in data if (d["scene"], d["method"]) == (r["scene"], r["method"]))
+        assert int(r["B/tri"]) == round(int(row["bytes"]) / int(row["triangles"]))
+    for heading, workload, rays in (("## Primary rays", "primary", "144"),
+                                    ("## Random rays", "random", "300")):
+        rows = _records(md, heading)
+        assert [(r["scene"], r["method"]) for r in rows] == [
+            (r["scene"], r["method"]) for r in build]
         for r in rows:
-            assert r[3] == rays
-            _ratio(r[4])                   # × Embree
-            lo, hi = r[5].split("–")       # its spread over the rounds
-            assert _ratio(lo) <= _ratio(r[4].strip("*")) <= _ratio(hi)
-            assert r[10] == "0"            # wrong hits
-    data = tmp_path / "data" / "benchmark.csv"
-    assert data.exists() and len(data.read_text().splitlines()) == 1 + 2 * 2 * 2
+            assert r["rays"] == rays and r["wrong hits"] == "0"
+            for rate in ("Embree Mray/s", "hits-only Mray/s", "counters Mray/s"):
+                _ratio(r[rate])
+            assert r["hits-only × Embree speed"].startswith("**")  # the headline
+            hits_only = _speed(r["hits-only × Embree speed"].replace("**", ""))
+            _speed(r["counters × Embree speed"])
+            # Embree's time over ours, round by round, then the median.
+            row = next(d for d in data if (d["scene"], d["method"], d["workload"])
+                       == (r["scene"], r["method"], workload))
+            per_round = np.divide([float(x) for x in row["embree_s"].split()],
+                                  [float(x) for x in row["hits_only_s"].split()])
+            assert len(per_round) == 2 and hits_only == pytest.approx(
+                float(np.median(per_round)), abs=0.006)
+            assert row["hits_only_unexplained"] == "0" and row["packets_s"] == ""
+        assert not any("packets" in name for name in rows[0])  # none traced yet
+
+
+def _fake_packets(wrong: bool):
+    """A packet path for the tests: the tree's hits-only path, its answers
+    moved to other triangles when `wrong`."""
+    from bsplab.lab import Tracer
+
+    def factory(tree, rays, spec):
+        def run():
+            hits = tree.intersect(rays.origins, rays.directions, tmax=rays.tmax, threads=1,
+                                  counters=False)
+            if wrong:
+                hits["prim"] = np.where(hits["prim"] >= 0, hits["prim"] ^ 1, -1)
+                hits["t"] = hits["t"] * 2
+            return hits
+        return Tracer(run)
+    return factory
+
+
+@pytest.mark.parametrize("wrong", [False, True])
+def test_a_packet_path_is_one_table_entry_and_its_hits_are_checked(tmp_path, monkeypatch,
+                                                                   wrong):
+    from bsplab.lab import benchmarks, tracers
+    primary = {**tracers.HITS_ONLY_TRACERS["primary"], "packets": _fake_packets(wrong)}
+    monkeypatch.setitem(tracers.HITS_ONLY_TRACERS, "primary", primary)
+    out = tmp_path / "benchmark.md"
+    code = benchmarks.bench(out, ["room"], ["kd", "bsp_cn+kd"], side=12, rays=100, repeats=2)
+    assert code == (1 if wrong else 0)  # a path that disagrees with Embree fails the bench
+    md = out.read_text()
+    for r in _records(md, "## Primary rays"):
+        _ratio(r["packets Mray/s"])
+        _speed(r["packets × Embree speed"])
+        assert (int(r["wrong hits"]) > 0) == wrong
+    random = _records(md, "## Random rays")  # packets trace primary rays only
+    assert not any("packets" in name for name in random[0])
+    assert all(r["wrong hits"] == "0" for r in random)
+    data = _csv_rows(tmp_path / "data" / "benchmark.csv")
+    for row in data:
+        traced = row["workload"] == "primary"
+        assert (row["packets_s"] != "") == traced
+        assert row["unexplained"] == row["hits_only_unexplained"] == "0"
+        if traced:
+            assert (int(row["packets_unexplained"]) > 0) == wrong
+
+
+def test_every_hits_only_tracer_has_its_columns():
+    from bsplab.lab import ROW_FIELDS, tracers
+    from bsplab.lab.spec import WORKLOADS
+    assert set(tracers.HITS_ONLY_TRACERS) == set(WORKLOADS)
+    for per_workload in tracers.HITS_ONLY_TRACERS.values():
+        for name in per_workload:
+            assert name in tracers.HITS_ONLY_PATHS
+            assert {f"{name}_s", f"{name}_unexplained"} <= set(ROW_FIELDS)
+
+
+def test_the_shipped_bench_spec_times_kd_and_the_kd_node_trees_on_every_path():
+    from bsplab.lab import benchmarks
+    from bsplab.method_table import METHODS
+    spec = benchmarks.benchmark_spec("bench", ["room"])
+    assert spec.hits_only and spec.repetitions >= 5
+    assert spec.methods[0] == "kd" and len(spec.methods) > 1
+    assert all(METHODS[m].kd_nodes for m in spec.methods[1:])
 
 
 def test_bench_family_has_every_method_and_k_against_kd(tmp_path):
@@ -316,6 +418,8 @@ def test_bench_command_line(tmp_path):
                         "--side", "8", "--rays", "64", "--repeats", "1", "--out", str(out)],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert "1/1 cells" in r.stderr  # the runner's progress bar
+    from bsplab.lab import benchmarks
+    trees = len(benchmarks.benchmark_spec("bench", ["room"]).methods)
+    assert f"{trees}/{trees} cells" in r.stderr  # the runner's progress bar
     assert "Command: `python -m bsplab bench --scenes room" in out.read_text()
     assert (tmp_path / "docs" / "data" / "benchmark.json").exists()

@@ -71,7 +71,7 @@ def _write(out: Path | None, text: str) -> None:
 
 
 def _wrong(rows: list[dict]) -> int:
-    return sum(int(r["unexplained"]) for r in rows if r["unexplained"] not in ("", None))
+    return sum(report.row_wrong_hits(r) for r in rows)
 
 
 def command_line() -> str:

@@ -15,7 +15,8 @@ import numpy as np
 
 from .. import scenes, workloads
 from .spec import Spec, build_options
-from .timing import PairedTimes, Tracer, format_times, paired_rounds
+from .timing import PairedTimes, format_times, paired_rounds
+from .tracers import HITS_ONLY_PATHS, Rays, cell_tracers
 
 
 @dataclass(frozen=True)
@@ -67,11 +68,11 @@ def load_scene(scene: str) -> SceneData:
     return _scene_cache[scene]
 
 
-def make_rays(spec: Spec, data: SceneData, embree) -> dict:
-    """The workloads' rays: {name: (origins, directions, tmax)}."""
+def make_rays(spec: Spec, data: SceneData, embree) -> dict[str, Rays]:
+    """The workloads' rays by name."""
     from .. import build
     o, d = data.camera.rays(spec.width, spec.height)
-    out = {"primary": (o, d, np.inf)}
+    out = {"primary": Rays("primary", o, d, np.inf)}
     if {"ao", "diffuse"} & set(spec.workloads):
         # Secondary rays start at the primary hits; Embree's answer is the
         # reference, so every tree gets the same rays.
@@ -80,11 +81,11 @@ def make_rays(spec: Spec, data: SceneData, embree) -> dict:
         so, sd = workloads.ambient_occlusion_rays(data.triangles, o, d, hits,
                                                   samples=spec.ao_samples)
         # AO: short rays (any occluder within reach); diffuse: a full bounce.
-        out["ao"] = (so, sd, float(spec.ao_distance * np.linalg.norm(hi - lo)))
-        out["diffuse"] = (so, sd, np.inf)
+        out["ao"] = Rays("ao", so, sd, float(spec.ao_distance * np.linalg.norm(hi - lo)))
+        out["diffuse"] = Rays("diffuse", so, sd, np.inf)
     if "random" in spec.workloads:  # the most incoherent rays: anywhere, any way
         ro, rd = workloads.random_rays(data.triangles, spec.random_rays, seed=1)
-        out["random"] = (ro, rd, np.inf)
+        out["random"] = Rays("random", ro, rd, np.inf)
     return {w: out[w] for w in spec.workloads}
 
 
@@ -125,20 +126,6 @@ def kd_reference(spec: Spec, scene: str, data: SceneData):
     return _kd_cache[key]
 
 
-def _tracers(tree, kd, embree, spec: Spec, o, d, tmax) -> dict[str, Tracer]:
-    """The cell's tree and its references on the same rays, one thread each."""
-    etmax = None if np.isinf(tmax) else tmax
-    out = {"ours": Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1))}
-    if kd is not tree:  # the kd cell's own times are its kd times
-        out["kd"] = Tracer(lambda: kd.intersect(o, d, tmax=tmax, threads=1))
-    if embree:
-        out["embree"] = Tracer(lambda: embree.intersect(o, d, tmax=etmax),
-                               lambda: embree.last_seconds)
-    if spec.cull:
-        out["culled"] = Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1, cull=True))
-    return out
-
-
 def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
              progress=None) -> list[dict]:
     """Builds the cell's tree and traces every workload; one row per workload."""
@@ -157,27 +144,33 @@ def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
             raise Cancelled("cancelled")
 
     rows = []
-    for w, (o, d, tmax) in rays.items():
-        times = paired_rounds(_tracers(tree, kd, embree, spec, o, d, tmax), spec.repetitions,
+    for r in rays.values():
+        times = paired_rounds(cell_tracers(tree, kd, embree, spec, r), spec.repetitions,
                               between_rounds=check_cancel)
         if kd is tree:
             times.seconds["kd"] = times.seconds["ours"]
-        rows.append(_row(cell, tris, tree.stats, w, o, d, times, embree))
+        rows.append(_row(cell, tris, tree.stats, r, times, embree))
     return rows
 
 
-def _row(cell: Cell, tris, s: dict, workload: str, o, d, times: PairedTimes, embree) -> dict:
+def _unexplained(hits: dict, embree_hits: dict, tris, rays: Rays) -> tuple[int, int]:
+    """Rays whose answer differs from Embree's beyond ties and grazing edges, and
+    the grazing ones."""
     from .. import oracle
+    c = oracle.compare(hits, embree_hits, triangles=tris, origins=rays.origins,
+                       directions=rays.directions)
+    return len(c["unexplained"]), c["grazing"]
+
+
+def _row(cell: Cell, tris, s: dict, rays: Rays, times: PairedTimes, embree) -> dict:
     hits = times.results["ours"]
     unexplained = grazing = ""
     if embree is not None:
-        c = oracle.compare(hits, times.results["embree"], triangles=tris, origins=o,
-                           directions=d)
-        unexplained, grazing = len(c["unexplained"]), c["grazing"]
+        unexplained, grazing = _unexplained(hits, times.results["embree"], tris, rays)
     row = {
         "scene": cell.scene, "triangles": len(tris), "method": cell.method,
-        "k": "" if cell.k is None else cell.k, "seed": cell.seed, "workload": workload,
-        "rays": len(o), "build_s": s["build_seconds"], "nodes": s["nodes"],
+        "k": "" if cell.k is None else cell.k, "seed": cell.seed, "workload": rays.workload,
+        "rays": len(rays.origins), "build_s": s["build_seconds"], "nodes": s["nodes"],
         "kd_nodes": s["kd_nodes"], "general_nodes": s["general_nodes"],
         "leaves": s["leaves"], "refs_per_tri": s["duplication"], "bytes": s["bytes"],
         "sah": s["sah_cost"],
@@ -203,4 +196,12 @@ def _row(cell: Cell, tris, s: dict, workload: str, o, d, times: PairedTimes, emb
                    cull_tests=float(on["tests"].mean()), culled=float(on["culled"].mean()),
                    # Culling must never change an answer.
                    cull_differs=int((on["t"] != hits["t"]).sum()))
+    for path in HITS_ONLY_PATHS:
+        row[f"{path}_s"] = row[f"{path}_unexplained"] = ""
+        if path in times.results:
+            row[f"{path}_s"] = format_times(times.seconds[path])
+            # Every path's every hit is checked: a fast path that went wrong shows.
+            if embree is not None:
+                row[f"{path}_unexplained"] = _unexplained(
+                    times.results[path], times.results["embree"], tris, rays)[0]
     return row

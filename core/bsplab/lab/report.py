@@ -19,6 +19,7 @@ import numpy as np
 
 from ..method_table import METHODS
 from .timing import parse_times
+from .tracers import HITS_ONLY_PATHS
 
 
 @dataclass
@@ -46,15 +47,20 @@ class Group:
             out += [a / b for a, b in zip(t, e)] if len(e) == len(t) else t
         return np.array(out)
 
-    def paired_with_kd(self) -> np.ndarray | None:
-        """Per repetition: our time / the kd-tree's, traced right beside it."""
+    def per_round(self, numerator: str, denominator: str) -> np.ndarray | None:
+        """Per round: the time in column `numerator` over the time in column
+        `denominator` traced beside it; None where a row lacks the pair."""
         out = []
         for r in self.rows:
-            t, k = parse_times(r["trace_s"]), parse_times(r.get("kd_s", ""))
-            if len(k) != len(t):
+            a, b = parse_times(r.get(numerator) or ""), parse_times(r.get(denominator) or "")
+            if not a or len(a) != len(b):
                 return None
-            out += [a / b for a, b in zip(t, k)]
+            out += [x / y for x, y in zip(a, b)]
         return np.array(out)
+
+    def paired_with_kd(self) -> np.ndarray | None:
+        """Per repetition: our time / the kd-tree's, traced right beside it."""
+        return self.per_round("trace_s", "kd_s")
 
     def has_embree(self) -> bool:
         return all(r["embree_s"] for r in self.rows)
@@ -137,9 +143,19 @@ def machine_lines(meta: dict | None) -> list[str]:
             f"`{meta.get('fingerprint', '?')}`.", ""]
 
 
+# A row's wrong hits, one column per traced path: the counting path's, then
+# each hits-only path's.
+WRONG_HITS_COLUMNS = ("unexplained",) + tuple(f"{p}_unexplained" for p in HITS_ONLY_PATHS)
+
+
+def row_wrong_hits(r: dict) -> int:
+    """Rays whose answer differs from Embree's beyond ties and grazing, on any
+    path the row traced."""
+    return sum(int(r[c]) for c in WRONG_HITS_COLUMNS if r.get(c) not in ("", None))
+
+
 def wrong_hits(g: Group) -> int:
-    """Rays of the group whose answer differs from Embree's beyond ties and grazing."""
-    return sum(int(r["unexplained"]) for r in g.rows if r["unexplained"] not in ("", None))
+    return sum(row_wrong_hits(r) for r in g.rows)
 
 
 def _f(x, fmt="{:.1f}") -> str:
@@ -267,9 +283,23 @@ PAIRED = ("Every time is measured with the lab's one protocol, paired rounds "
 
 
 # What the columns of each benchmark's tables are.
-BENCH_COLUMNS = ("`× Embree` is our time over Embree's (below 1 is faster than Embree); "
-                 "`build × Embree` our build time over Embree's (embreex's BVH build, "
-                 "measured once per scene). `embreex` traces on one thread, and so do we here.")
+BENCH_COLUMNS = (
+    "Each tree traces each workload's rays on up to three paths, each timed beside "
+    "Embree (`rtcIntersect1` per ray through embreex, which times its own loop) in the "
+    "same rounds: **hits-only**, one ray at a time without counters "
+    "(`tree.intersect(o, d, threads=1, counters=False)`: the closest hits only, as "
+    "Embree and the shaded, normal and depth renders need); **packets**, primary rays "
+    "traced in SIMD groups (its columns appear once the packet path is timed: "
+    "`bsplab.lab.tracers.HITS_ONLY_TRACERS`); **counters** (`counters=True`: the path "
+    "that also counts the steps and tests per ray shown here and in the heatmaps). "
+    "`× Embree speed` is Embree's time over the path's time in the same round, the "
+    "median over the rounds (above 1: faster than Embree), min–max in brackets; "
+    "Mray/s come from median times. Every hit of every path is checked against "
+    "Embree's: `wrong hits` counts the rays on which any path's answer differs from "
+    "Embree's beyond ties and grazing edges (it must be 0), `grazing` the counters "
+    "path's grazing rays. In the build table, `build × Embree` is our build time over "
+    "Embree's (embreex's mesh set-up and BVH build, measured once per scene), `B/tri` "
+    "the tree's bytes per triangle.")
 
 FAMILY_COLUMNS = ("`time % kd` is the tree's time over the kd-tree's traced beside it "
                   "(below 100 is faster than kd), min–max over the repetitions; `× Embree` "
@@ -295,20 +325,19 @@ def _header(title: str, command: str, meta: dict | None, text: str) -> list[str]
         PAIRED, "", text, ""]
 
 
-def _mrays(g: Group, column: str) -> float:
-    """Rays per microsecond (Mray/s) from the median of the rounds' times."""
-    times = [t for r in g.rows for t in parse_times(r[column])]
-    return int(g.rows[0]["rays"]) / float(np.median(times)) / 1e6
+def _mrays(g: Group, column: str) -> float | None:
+    """Rays per microsecond (Mray/s) from the median of the rounds' times in
+    `column`; None where the rows have none."""
+    times = [t for r in g.rows for t in parse_times(r.get(column) or "")]
+    return int(g.rows[0]["rays"]) / float(np.median(times)) / 1e6 if times else None
 
 
-def benchmark_markdown(rows: list[dict], command: str, meta: dict | None = None) -> str:
-    """docs/benchmark.md: build and trace of each method against Embree."""
-    res = Results(rows)
-    out = _header("Benchmark: BSP Lab trees vs Embree", command, meta, BENCH_COLUMNS)
-    out += ["## Build", "",
-            "| scene | triangles | method | build s | build × Embree | nodes | leaves | "
-            "depth | refs/tri | tris/leaf | MiB | SAH |",
-            "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+def _build_table(res: Results) -> list[str]:
+    """Per scene and method (its first K), the build and the tree's size."""
+    out = ["## Build", "",
+           "| scene | triangles | method | build s | build × Embree | nodes | leaves | "
+           "depth | refs/tri | tris/leaf | MiB | B/tri | SAH |",
+           "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     w0 = res.workloads[0]
     warned = []
     for scene in res.scenes:
@@ -324,30 +353,63 @@ def benchmark_markdown(rows: list[dict], command: str, meta: dict | None = None)
                 f"{_f(None if not e else g.mean('build_s') / e, '{:.2f}')} | "
                 f"{int(g.mean('nodes')):,} | {int(g.mean('leaves')):,} | {r['max_depth']} | "
                 f"{g.mean('refs_per_tri'):.2f} | {g.mean('mean_leaf_size'):.2f} | "
-                f"{g.mean('bytes') / 2**20:.1f} | {g.mean('sah'):.1f} |")
+                f"{g.mean('bytes') / 2**20:.1f} | {g.mean('bytes') / g.triangles:.0f} | "
+                f"{g.mean('sah'):.1f} |")
             warned += [(scene, m, w) for w in r.get("warnings", "").split("; ") if w]
     if warned:
         out.append("")
         out += [f"**Warning** ({scene_label(s)}, {m}): {w}." for s, m, w in warned]
+    return out
+
+
+# The paths a trace table shows, in its column order: (times column, label).
+TRACE_PATHS = tuple((f"{p}_s", p.replace("_", "-")) for p in HITS_ONLY_PATHS) + (
+    ("trace_s", "counters"),)
+
+
+def _speed_cell(g: Group, column: str, bold: bool) -> str:
+    """`× Embree speed` of one path: the median of Embree's time over the
+    path's, round by round, and the spread over the rounds."""
+    x = g.per_round("embree_s", column)
+    if x is None:
+        return "—"
+    med = f"**{np.median(x):.2f}**" if bold else f"{np.median(x):.2f}"
+    return f"{med} ({x.min():.2f}–{x.max():.2f})"
+
+
+def _trace_table(res: Results, w: str) -> list[str]:
+    """One workload: per scene, method and K, Embree's rate and every path's
+    rate and speed against Embree's."""
+    groups = [g for scene in res.scenes for m in res.methods for k in res.ks(m)
+              if (g := res.get(scene, w, m, k)) is not None and g.has_embree()]
+    paths = [(c, label) for c, label in TRACE_PATHS
+             if any(r.get(c) for g in groups for r in g.rows)]
+    head = "| scene | method | K | rays | Embree Mray/s |"
+    head += "".join(f" {label} Mray/s | {label} × Embree speed |" for _, label in paths)
+    out = ["", f"## {w.capitalize()} rays", "",
+           head + " steps/ray | tests/ray | wrong hits | grazing |",
+           "|---|---|---:|---:|---:|" + "---:|---:|" * len(paths) + "---:|---:|---:|---:|"]
+    for g in groups:
+        cells = [scene_label(g.scene), g.method, "" if g.k is None else str(g.k),
+                 f"{int(g.rows[0]['rays']):,}", _f(_mrays(g, "embree_s"), "{:.2f}")]
+        for i, (column, _) in enumerate(paths):
+            # Bold: the first path shown, hits-only single rays where measured
+            # (the figure the issue's targets are about), else the counters'.
+            cells += [_f(_mrays(g, column), "{:.2f}"), _speed_cell(g, column, i == 0)]
+        grazing = sum(int(r["grazing"]) for r in g.rows)
+        cells += [f"{g.mean('steps'):.1f}", f"{g.mean('tests'):.2f}", str(wrong_hits(g)),
+                  str(grazing)]
+        out.append("| " + " | ".join(cells) + " |")
+    return out
+
+
+def benchmark_markdown(rows: list[dict], command: str, meta: dict | None = None) -> str:
+    """docs/benchmark.md: build and trace of each method against Embree."""
+    res = Results(rows)
+    out = _header("Benchmark: BSP Lab trees vs Embree", command, meta, BENCH_COLUMNS)
+    out += _build_table(res)
     for w in res.workloads:
-        out += ["", f"## {w.capitalize()} rays", "",
-                "| scene | method | K | rays | × Embree (med) | min–max | Embree Mray/s | "
-                "ours Mray/s | steps/ray | tests/ray | wrong hits | grazing |",
-                "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-        for scene in res.scenes:
-            for m in res.methods:
-                for k in res.ks(m):
-                    g = res.get(scene, w, m, k)
-                    if g is None or not g.has_embree():
-                        continue
-                    x = g.normalised()
-                    grazing = sum(int(r["grazing"]) for r in g.rows)
-                    out.append(
-                        f"| {scene_label(scene)} | {m} | {'' if k is None else k} | "
-                        f"{int(g.rows[0]['rays']):,} | **{np.median(x):.2f}** | "
-                        f"{x.min():.2f}–{x.max():.2f} | {_mrays(g, 'embree_s'):.2f} | "
-                        f"{_mrays(g, 'trace_s'):.2f} | {g.mean('steps'):.1f} | "
-                        f"{g.mean('tests'):.2f} | {wrong_hits(g)} | {grazing} |")
+        out += _trace_table(res, w)
     return "\n".join(out) + "\n"
 
 

@@ -49,6 +49,7 @@ class Spec:
     method_variants: dict = field(default_factory=dict)   # per-method variants replacing them
     random_rays: int = 65_536     # rays of the `random` workload
     cull: bool = False            # also trace each tree with leaf culling on, paired
+    hits_only: bool = False       # also trace each tree on its hits-only paths, paired
 
     def fingerprint(self) -> str:
         """What decides the rows (not how they are run): resume only matches this."""
@@ -84,7 +85,7 @@ def variant_label(key: str) -> str:
     return ", ".join(f"{k} {v}" for k, v in options.items()) or "defaults"
 
 
-LATER_KEYS = ("variants", "method_variants", "random_rays", "cull")
+LATER_KEYS = ("variants", "method_variants", "random_rays", "cull", "hits_only")
 SPEC_DEFAULTS = {f.name: f.default if f.default_factory is MISSING else f.default_factory()
                  for f in fields(Spec)}
 
@@ -222,8 +223,9 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
         if m not in METHODS:
             raise SpecError(f"method_variants: unknown method {m!r}")
         method_variants[m] = _variants(v, f"method_variants.{m}")
-    if not isinstance(d["cull"], bool):
-        raise SpecError(f"cull must be true or false, got {_kind(d['cull'])} {d['cull']!r}")
+    for key in ("cull", "hits_only"):
+        if not isinstance(d[key], bool):
+            raise SpecError(f"{key} must be true or false, got {_kind(d[key])} {d[key]!r}")
     spec = Spec(name=str(d["name"]), scenes=list(scenes), methods=list(methods), ks=ks,
                 method_ks=method_ks, seeds=seeds,
                 repetitions=integer("repetitions", 1, 1000), workloads=list(workloads),
@@ -233,7 +235,8 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
                 executor=d["executor"], workers=integer("workers", 1, 1024),
                 scheduler=str(d["scheduler"]), variants=variants,
                 method_variants=method_variants,
-                random_rays=integer("random_rays", 1, 100_000_000), cull=d["cull"])
+                random_rays=integer("random_rays", 1, 100_000_000), cull=d["cull"],
+                hits_only=d["hits_only"])
     _check_options(spec)
     return spec
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from .cells import Cell
 from .spec import Spec, SpecError
+from .tracers import HITS_ONLY_PATHS
 
 ROW_FIELDS = [
     "scene", "triangles", "method", "k", "seed", "workload", "rays",
@@ -28,6 +29,9 @@ ROW_FIELDS = [
     # Added with the benchmarks (empty where a spec does not measure them).
     "variant", "max_depth", "mean_leaf_size", "box_bytes", "warnings",
     "cull_s", "cull_tests", "culled", "cull_differs",
+    # The hits-only paths, where the spec times them: their rounds' times and
+    # wrong hits (hits_only_s, hits_only_unexplained, packets_s, ...).
+    *(f"{path}_{column}" for path in HITS_ONLY_PATHS for column in ("s", "unexplained")),
 ]
 
 

@@ -1,0 +1,83 @@
+"""What a cell times side by side in `timing.paired_rounds`, one thread each:
+the cell's tree on the counting path (the lab's steps and tests per ray come
+from it), the scene's kd-tree, Embree, and on request the same tree with leaf
+culling on and on its hits-only paths.
+
+The counting path writes eight arrays per ray; a renderer, and Embree, only
+need the closest hit. So a speed quoted against Embree's (`bench`) is the
+hits-only paths' speed: the table `HITS_ONLY_TRACERS` below says which of
+them trace which workload."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .spec import Spec
+from .timing import Tracer
+
+
+@dataclass(frozen=True)
+class Rays:
+    """One workload's rays, as every tracer of a cell gets them."""
+    workload: str
+    origins: np.ndarray
+    directions: np.ndarray
+    tmax: float      # inf: unbounded
+
+
+# The hits-only paths a results row has columns for: `<name>_s` (the rounds'
+# times) and `<name>_unexplained` (rays whose answer differs from Embree's).
+HITS_ONLY_PATHS = ("hits_only", "packets")
+
+# A factory makes a path's tracer for one cell and workload. Its run() must
+# return t, prim, u, v in the order of `rays` (they are checked against
+# Embree's ray by ray); a path that wants the rays in another order reorders
+# its own copy when the factory runs, outside the timed call.
+TracerFactory = Callable[[object, Rays, Spec], Tracer]
+
+
+def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
+    """One ray at a time, without counters: the path `render()`'s shaded,
+    normal and depth modes take."""
+    return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
+                                         threads=1, counters=False))
+
+
+# Per workload, the hits-only paths a spec with `hits_only = true` times, by
+# name (one of HITS_ONLY_PATHS).
+#
+# >>> Where the packet path goes. Once `Tree.intersect(..., packets=True)` is
+# >>> in main, the one entry `"packets": <factory>` under "primary" (a factory
+# >>> like `_single_rays` passing packets=True, the rays in the camera's tile
+# >>> order if it needs them) makes `bench` time it, check its hits against
+# >>> Embree's and show its columns.
+HITS_ONLY_TRACERS: dict[str, dict[str, TracerFactory]] = {
+    "primary": {"hits_only": _single_rays},
+    "ao": {"hits_only": _single_rays},
+    "diffuse": {"hits_only": _single_rays},
+    "random": {"hits_only": _single_rays},
+}
+
+
+def cell_tracers(tree, kd, embree, spec: Spec, rays: Rays) -> dict[str, Tracer]:
+    """The cell's tree and its references on the same rays, one thread each:
+    `ours` (the counting path), `kd` (unless the tree is the kd reference),
+    `embree` (where it runs), `culled` (spec.cull) and the workload's
+    hits-only paths (spec.hits_only)."""
+    o, d, tmax = rays.origins, rays.directions, rays.tmax
+    etmax = None if np.isinf(tmax) else tmax
+    out = {"ours": Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1))}
+    if kd is not tree:  # the kd cell's own times are its kd times
+        out["kd"] = Tracer(lambda: kd.intersect(o, d, tmax=tmax, threads=1))
+    if embree:
+        out["embree"] = Tracer(lambda: embree.intersect(o, d, tmax=etmax),
+                               lambda: embree.last_seconds)
+    if spec.cull:
+        out["culled"] = Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1, cull=True))
+    if spec.hits_only:
+        for name, factory in HITS_ONLY_TRACERS.get(rays.workload, {}).items():
+            out[name] = factory(tree, rays, spec)
+    return out
