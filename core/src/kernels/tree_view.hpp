@@ -24,6 +24,8 @@ struct TreeView {
     // Rays and distances go into the tree's scaled space and back.
     double scale;
     LeafBoxes leaf_boxes;
+    // Any general node? Trees without (kd) take the kd-only traversal.
+    bool has_general;
 };
 
 inline TreeView make_tree_view(const Tree& tree) {
@@ -41,7 +43,8 @@ inline TreeView make_tree_view(const Tree& tree) {
                     tree.options.leaf_boxes != LeafBoxes::Clipped,
                     2.0f * scene_scale,
                     tree.scale,
-                    tree.options.leaf_boxes};
+                    tree.options.leaf_boxes,
+                    !tree.planes.empty()};
 }
 
 }  // namespace bsp
