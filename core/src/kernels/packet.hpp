@@ -32,6 +32,7 @@ constexpr int kLanes = 8;
 #else
 constexpr int kLanes = 4;
 #endif
+constexpr uint32_t kAllLanes = (1u << kLanes) - 1;
 
 typedef float vfloat __attribute__((vector_size(4 * kLanes)));
 typedef int32_t vint __attribute__((vector_size(4 * kLanes)));
@@ -63,10 +64,10 @@ struct PacketRays {
     // The shear of intersect_triangle per lane: the origin's and a vertex's
     // coordinates along kx, ky, kz, and sx, sy.
     vfloat okx, oky, okz, sx, sy;
-    int kx[kLanes], ky[kLanes], kz[kLanes];
     // Lanes whose kx (ky, kz) is 0 or 1; unused when every lane has the same.
     vint kx0, kx1, ky0, ky1, kz0, kz1;
     bool same_shear;
+    int kx, ky, kz;  // every lane's, when same_shear
     // signbit(dir[axis]) per lane: which child a kd node's lanes enter first.
     LaneMask dir_negative[3];
 };
@@ -81,7 +82,7 @@ inline vfloat pick(vint is0, vint is1, const Vec3& v) {
 }
 
 inline ShearedVertex shear_vertex(const PacketRays& r, const Vec3& v) {
-    if (r.same_shear) return {splat(v[r.kx[0]]), splat(v[r.ky[0]]), splat(v[r.kz[0]])};
+    if (r.same_shear) return {splat(v[r.kx]), splat(v[r.ky]), splat(v[r.kz])};
     return {pick(r.kx0, r.kx1, v), pick(r.ky0, r.ky1, v), pick(r.kz0, r.kz1, v)};
 }
 
@@ -209,80 +210,104 @@ inline PacketCrossing cross_node(const TreeView& tree, const PacketRays& r, Node
     return {tplane - err, tplane + err, lane_bits(vint(nd) < 0), node.general_above()};
 }
 
+// Lane-wise `m ? a : b` for the integer lanes.
+inline vint select(vint m, vint a, vint b) { return m ? a : b; }
+
+// The lanes' coordinates along the axes in `k` (0, 1 or 2 per lane).
+inline vfloat along(vint k, const vfloat v[3]) {
+    return select(k == 0, v[0], select(k == 1, v[1], v[2]));
+}
+
+// clip_to_box for every lane: the same operations, the early return of a
+// lane that misses replaced by its bit in the returned mask.
+inline LaneMask clip_lanes_to_box(const Box& box, const PacketRays& r, vfloat& t0, vfloat& t1) {
+    vint miss{};
+    const vfloat zero{};
+    for (int k = 0; k < 3; ++k) {
+        const vint flat = r.dir[k] == zero;
+        miss |= flat & ((r.org[k] < box.lo[k]) | (r.org[k] > box.hi[k]));
+        const vfloat tn = (box.lo[k] - r.org[k]) * r.idir[k];
+        const vfloat tf = (box.hi[k] - r.org[k]) * r.idir[k];
+        const vint swap = tn > tf;
+        const vfloat near = select(swap, tf, tn);
+        const vfloat far = select(swap, tn, tf) * (1.0f + 4.0f * std::numeric_limits<float>::epsilon());
+        // std::max(t0, near) and std::min(t1, far), on the lanes not parallel.
+        t0 = select(flat, t0, select(t0 < near, near, t0));
+        t1 = select(flat, t1, select(far < t1, far, t1));
+        miss |= ~flat & (t0 > t1);
+    }
+    return ~lane_bits(miss);
+}
+
+// ShearedRay's constants for every lane (same comparisons, same divisions).
+inline void shear_lanes(PacketRays& r) {
+    const vfloat ax = vabs(r.dir[0]), ay = vabs(r.dir[1]), az = vabs(r.dir[2]);
+    const vint zero{}, one = zero + 1, two = zero + 2;
+    const vint kz = select(ax > ay, select(ax > az, zero, two), select(ay > az, one, two));
+    vint kx = select(kz == 2, zero, kz + 1);
+    vint ky = select(kx == 2, zero, kx + 1);
+    const vfloat dkz = along(kz, r.dir);
+    // Swap kx and ky where the dominant direction is negative (the winding).
+    const vint negative = dkz < 0.0f;
+    const vint swapped_x = select(negative, ky, kx);
+    ky = select(negative, kx, ky);
+    kx = swapped_x;
+    r.sx = along(kx, r.dir) / dkz;
+    r.sy = along(ky, r.dir) / dkz;
+    r.okx = along(kx, r.org), r.oky = along(ky, r.org), r.okz = along(kz, r.org);
+    r.kx0 = kx == 0, r.kx1 = kx == 1;
+    r.ky0 = ky == 0, r.ky1 = ky == 1;
+    r.kz0 = kz == 0, r.kz1 = kz == 1;
+    r.kx = kx[0], r.ky = ky[0], r.kz = kz[0];
+    r.same_shear = lane_bits((kx == r.kx) & (ky == r.ky) & (kz == r.kz)) == kAllLanes;
+}
+
 // Sets up a packet of rays [first, first + n) in the tree's space; the lanes
 // from n on repeat the first ray and stay inactive. Returns the lanes whose
 // ray meets the scene box, with their ranges in t0, t1.
 inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t first, int n,
                              PacketRays& r, vfloat& t0, vfloat& t1, vfloat& tmax) {
     const double scale = tree.scale;
-    constexpr float kCrossUlps = 1.0f / (1 << 20);  // as in trace_one
-    LaneMask active = 0;
     for (int i = 0; i < kLanes; ++i) {
         const size_t k = first + size_t(i < n ? i : 0);
         const float* o = batch.origins + 3 * k;
         const float* d = batch.directions + 3 * k;
-        float tmin = batch.tmin[k * batch.tmin_stride], tm = batch.tmax[k * batch.tmax_stride];
-        Vec3 org(o[0], o[1], o[2]);
-        if (scale != 1.0) {
+        const float tmin = batch.tmin[k * batch.tmin_stride];
+        const float tm = batch.tmax[k * batch.tmax_stride];
+        for (int c = 0; c < 3; ++c) r.dir[c][i] = d[c];
+        if (scale == 1.0) {
+            for (int c = 0; c < 3; ++c) r.org[c][i] = o[c];
+            r.tmin[i] = tmin, tmax[i] = tm;
+        } else {
             // Into the tree's scaled space, as trace_single_rays: o and the
             // range scale, d does not.
-            org = Vec3(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
-            tmin = float(tmin * scale);
-            tm = float(tm * scale);
+            for (int c = 0; c < 3; ++c) r.org[c][i] = float(o[c] * scale);
+            r.tmin[i] = float(tmin * scale), tmax[i] = float(tm * scale);
         }
-        const Vec3 dir(d[0], d[1], d[2]);
-        const Vec3 inv(1.0f / dir.x, 1.0f / dir.y, 1.0f / dir.z);
-        for (int k3 = 0; k3 < 3; ++k3) {
-            r.org[k3][i] = org[k3];
-            r.dir[k3][i] = dir[k3];
-            r.idir[k3][i] = inv[k3];
-        }
-        r.tmin[i] = tmin;
-        tmax[i] = tm;
-        r.cross_a[i] = kCrossUlps * (tree.two_scene_scale + std::fabs(org.x) + std::fabs(org.y) +
-                                     std::fabs(org.z));
-        r.cross_b[i] = kCrossUlps * (std::fabs(dir.x) + std::fabs(dir.y) + std::fabs(dir.z));
-        const ShearedRay s(org, dir);
-        r.kx[i] = s.kx, r.ky[i] = s.ky, r.kz[i] = s.kz;
-        r.okx[i] = org[s.kx], r.oky[i] = org[s.ky], r.okz[i] = org[s.kz];
-        r.sx[i] = s.sx, r.sy[i] = s.sy;
-        r.kx0[i] = -(s.kx == 0), r.kx1[i] = -(s.kx == 1);
-        r.ky0[i] = -(s.ky == 0), r.ky1[i] = -(s.ky == 1);
-        r.kz0[i] = -(s.kz == 0), r.kz1[i] = -(s.kz == 1);
-        float a = tmin, b = tm;
-        if (i < n && clip_to_box(tree.bounds, org, inv, dir, a, b)) active |= 1u << i;
-        t0[i] = a;
-        t1[i] = b;
     }
-    r.same_shear = true;
-    for (int i = 1; i < kLanes; ++i)
-        r.same_shear &= r.kx[i] == r.kx[0] && r.ky[i] == r.ky[0] && r.kz[i] == r.kz[0];
-    for (int k3 = 0; k3 < 3; ++k3) r.dir_negative[k3] = lane_bits(vint(r.dir[k3]) < 0);
-    return active;
+    for (int c = 0; c < 3; ++c) r.idir[c] = 1.0f / r.dir[c];
+    // As in trace_one, summed in the same order.
+    constexpr float kCrossUlps = 1.0f / (1 << 20);
+    r.cross_a = kCrossUlps *
+                (tree.two_scene_scale + vabs(r.org[0]) + vabs(r.org[1]) + vabs(r.org[2]));
+    r.cross_b = kCrossUlps * (vabs(r.dir[0]) + vabs(r.dir[1]) + vabs(r.dir[2]));
+    shear_lanes(r);
+    for (int c = 0; c < 3; ++c) r.dir_negative[c] = lane_bits(vint(r.dir[c]) < 0);
+    t0 = r.tmin, t1 = tmax;
+    const LaneMask rays_here = n == kLanes ? kAllLanes : (1u << n) - 1;
+    return clip_lanes_to_box(tree.bounds, r, t0, t1) & rays_here;
 }
 
-// The children a group of lanes visits at an inner node, in trace_one's
-// order for that group: its entry child over [t0, min(t1, t_hi)] by the lanes
-// that visit it, then its exit child over [max(t0, t_lo), t1]. A lane in the
-// plane (NaN) visits both over its whole range.
-struct ChildVisits {
-    PacketCell entry, exit;
-};
-
-inline ChildVisits visit_children(const PacketCrossing& x, uint32_t index, LaneMask group,
-                                  bool down, vfloat t0, vfloat t1) {
-    const vint in_plane = !(x.t_lo <= x.t_hi);
-    const vint beyond = x.t_lo > t1;   // crosses beyond the range: entry only
-    const vint before = x.t_hi < t0;   // crossed before it: exit only
-    const LaneMask enter = group & lane_bits(in_plane | beyond | !before);
-    const LaneMask leave = group & lane_bits(in_plane | !beyond);
-    // The comparisons are false for NaN, which keeps a lane in the plane on
-    // its whole range, as std::min / std::max do in trace_one.
-    const vfloat entry_t1 = select(x.t_hi < t1, x.t_hi, t1);
-    const vfloat exit_t0 = select(x.t_lo > t0, x.t_lo, t0);
-    const uint32_t entry = down ? x.above_child : index + 1;
-    const uint32_t exit = down ? index + 1 : x.above_child;
-    return {{t0, entry_t1, entry, enter}, {exit_t0, t1, exit, leave}};
+// The lanes of `group` that visit a node's entry child and its exit child
+// (trace_one: a lane in the plane, NaN, visits both; one crossing beyond its
+// range only the entry; one crossed before it only the exit).
+inline void child_lanes(vfloat t_lo, vfloat t_hi, vfloat t0, vfloat t1, LaneMask group,
+                        LaneMask& enter, LaneMask& leave) {
+    const vint in_plane = !(t_lo <= t_hi);
+    const vint beyond = t_lo > t1;
+    const vint before = t_hi < t0;
+    enter = group & lane_bits(in_plane | beyond | !before);
+    leave = group & lane_bits(in_plane | !beyond);
 }
 
 // The deepest trees (depth 64) push at most three cells per level: the exit
@@ -297,43 +322,40 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
     uint32_t index = 0;
     PacketMailbox mailbox;
     const Node* nodes = tree.nodes;
-    auto push = [&](const PacketCell& c) {
-        if (c.lanes) stack[top++] = c;
-    };
-    auto pop = [&]() {
-        if (top == 0) return false;
-        const PacketCell& c = stack[--top];
-        index = c.node, t0 = c.t0, t1 = c.t1, active = c.lanes;
-        return true;
-    };
     for (;;) {
         // A lane leaves the packet's cell when it starts beyond the lane's
         // closest hit (trace_one's early exit, lane by lane).
         active &= ~lane_bits(hits.t < t0);
-        if (!active) {
-            if (!pop()) break;
-            continue;
-        }
         const Node node = nodes[index];
-        if (!node.is_leaf()) {
+        if (active && !node.is_leaf()) {
             const PacketCrossing x = cross_node(tree, rays, node);
             const LaneMask down = active & x.down;
-            const LaneMask up = active & ~x.down;
-            // The lanes moving down are deferred (pushed) when the packet
-            // splits; either way the current group continues in its entry.
-            if (down && up) {
-                const ChildVisits later = visit_children(x, index, down, true, t0, t1);
-                push(later.exit);
-                push(later.entry);
+            LaneMask enter, leave;
+            if (down && down != active) {
+                // The lanes disagree on the child order: the lanes moving
+                // down wait on the stack (their entry child on top), the
+                // others go on now.
+                child_lanes(x.t_lo, x.t_hi, t0, t1, down, enter, leave);
+                if (leave) stack[top++] = {select(x.t_lo > t0, x.t_lo, t0), t1, index + 1, leave};
+                if (enter) stack[top++] = {t0, select(x.t_hi < t1, x.t_hi, t1), x.above_child, enter};
+                active &= ~down;
             }
-            const bool now_down = up == 0;
-            const ChildVisits v = visit_children(x, index, now_down ? down : up, now_down, t0, t1);
-            push(v.exit);
-            index = v.entry.node, t1 = v.entry.t1, active = v.entry.lanes;
+            const bool moves_down = down != 0 && active == down;
+            child_lanes(x.t_lo, x.t_hi, t0, t1, active, enter, leave);
+            const uint32_t entry = moves_down ? x.above_child : index + 1;
+            const uint32_t exit = moves_down ? index + 1 : x.above_child;
+            // The comparisons are false for NaN, which keeps a lane in the
+            // plane on its whole range, as std::max / std::min do in trace_one.
+            if (leave) stack[top++] = {select(x.t_lo > t0, x.t_lo, t0), t1, exit, leave};
+            index = entry;
+            t1 = select(x.t_hi < t1, x.t_hi, t1);
+            active = enter;
             continue;
         }
-        intersect_packet_leaf(tree, node, index, rays, active, mailbox, hits);
-        if (!pop()) break;
+        if (active) intersect_packet_leaf(tree, node, index, rays, active, mailbox, hits);
+        if (top == 0) break;
+        const PacketCell& c = stack[--top];
+        index = c.node, t0 = c.t0, t1 = c.t1, active = c.lanes;
     }
 }
 
