@@ -50,7 +50,8 @@ inline LaneMask lane_bits(vint m) {
 #endif
 }
 
-inline vfloat splat(float x) { return vfloat{} + x; }
+// x in every lane. (Not 0 + x, which would turn -0 into +0.)
+inline vfloat splat(float x) { return x - vfloat{}; }
 
 inline vfloat vabs(vfloat x) { return vfloat(vint(x) & 0x7FFFFFFF); }
 
@@ -322,10 +323,8 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
     uint32_t index = 0;
     PacketMailbox mailbox;
     const Node* nodes = tree.nodes;
+    active &= ~lane_bits(hits.t < t0);
     for (;;) {
-        // A lane leaves the packet's cell when it starts beyond the lane's
-        // closest hit (trace_one's early exit, lane by lane).
-        active &= ~lane_bits(hits.t < t0);
         const Node node = nodes[index];
         if (active && !node.is_leaf()) {
             const PacketCrossing x = cross_node(tree, rays, node);
@@ -353,9 +352,16 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
             continue;
         }
         if (active) intersect_packet_leaf(tree, node, index, rays, active, mailbox, hits);
-        if (top == 0) break;
-        const PacketCell& c = stack[--top];
-        index = c.node, t0 = c.t0, t1 = c.t1, active = c.lanes;
+        // Pop the next cell its lanes still need: a lane leaves a cell that
+        // starts beyond its closest hit (trace_one's early exit, lane by
+        // lane). Only a leaf changes the hits, and an entry child starts
+        // where its parent does, so the check is needed after pops only.
+        do {
+            if (top == 0) return;
+            const PacketCell& c = stack[--top];
+            index = c.node, t0 = c.t0, t1 = c.t1;
+            active = c.lanes & ~lane_bits(hits.t < t0);
+        } while (!active);
     }
 }
 
