@@ -82,8 +82,17 @@ inline vfloat pick(vint is0, vint is1, const Vec3& v) {
     return select(is0, splat(v.x), select(is1, splat(v.y), splat(v.z)));
 }
 
+// v[k] as one indexed load (Vec3's operator[] is a chain of selects).
+inline float coordinate(const Vec3& v, int k) {
+    static_assert(sizeof(Vec3) == 3 * sizeof(float), "Vec3 is x, y, z");
+    float c[3];
+    std::memcpy(c, &v, sizeof c);
+    return c[k];
+}
+
 inline ShearedVertex shear_vertex(const PacketRays& r, const Vec3& v) {
-    if (r.same_shear) return {splat(v[r.kx]), splat(v[r.ky]), splat(v[r.kz])};
+    if (r.same_shear)
+        return {splat(coordinate(v, r.kx)), splat(coordinate(v, r.ky)), splat(coordinate(v, r.kz))};
     return {pick(r.kx0, r.kx1, v), pick(r.ky0, r.ky1, v), pick(r.kz0, r.kz1, v)};
 }
 
@@ -299,16 +308,16 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
     return clip_lanes_to_box(tree.bounds, r, t0, t1) & rays_here;
 }
 
-// The lanes of `group` that visit a node's entry child and its exit child
-// (trace_one: a lane in the plane, NaN, visits both; one crossing beyond its
-// range only the entry; one crossed before it only the exit).
+// The lanes of `group` that visit a node's entry child and its exit child.
+// trace_one: a lane in the plane (NaN) visits both; one crossing beyond its
+// range only the entry; one crossed before it only the exit. With t0 <= t1,
+// which holds for every active lane, that is: the entry unless t_hi < t0,
+// the exit unless t_lo > t1 (comparisons with NaN are false, so a lane in
+// the plane visits both).
 inline void child_lanes(vfloat t_lo, vfloat t_hi, vfloat t0, vfloat t1, LaneMask group,
                         LaneMask& enter, LaneMask& leave) {
-    const vint in_plane = !(t_lo <= t_hi);
-    const vint beyond = t_lo > t1;
-    const vint before = t_hi < t0;
-    enter = group & lane_bits(in_plane | beyond | !before);
-    leave = group & lane_bits(in_plane | !beyond);
+    enter = group & ~lane_bits(t_hi < t0);
+    leave = group & ~lane_bits(t_lo > t1);
 }
 
 // The deepest trees (depth 64) push at most three cells per level: the exit
