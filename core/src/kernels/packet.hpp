@@ -36,6 +36,7 @@ constexpr uint32_t kAllLanes = (1u << kLanes) - 1;
 
 typedef float vfloat __attribute__((vector_size(4 * kLanes)));
 typedef int32_t vint __attribute__((vector_size(4 * kLanes)));
+typedef double vdouble __attribute__((vector_size(8 * kLanes)));
 // One bit per lane, lane i in bit i.
 using LaneMask = uint32_t;
 
@@ -57,9 +58,19 @@ inline vfloat vabs(vfloat x) { return vfloat(vint(x) & 0x7FFFFFFF); }
 
 inline vfloat select(vint m, vfloat a, vfloat b) { return m ? a : b; }
 
+inline vdouble to_double(vfloat x) { return __builtin_convertvector(x, vdouble); }
+
+// All ones in the lanes whose bit is set.
+inline vint lane_vector(LaneMask m) {
+    vint bit;
+    for (int i = 0; i < kLanes; ++i) bit[i] = int32_t(1u << i);
+    return (bit & int32_t(m)) != 0;
+}
+
 // The rays of one packet, in the tree's (scaled) space, as trace_one sees them.
 struct PacketRays {
     vfloat org[3], dir[3], idir[3];
+    vdouble org_d[3], dir_d[3];  // for the hits' distance in double
     vfloat tmin;
     vfloat cross_a, cross_b;  // a general crossing's error terms (trace_one)
     // The shear of intersect_triangle per lane: the origin's and a vertex's
@@ -98,15 +109,25 @@ inline ShearedVertex shear_vertex(const PacketRays& r, const Vec3& v) {
 
 // The closest hits of a packet; prim -1 where none yet.
 struct PacketHits {
-    vfloat t;
-    int32_t prim[kLanes];
-    float u[kLanes], v[kLanes];
+    vfloat t, u, v;
+    vint prim;
 };
+
+// plane_distance (triangle.hpp) for every lane: the same double operations
+// in the same order, the triangle's normal computed once.
+inline vfloat plane_distances(const PacketRays& r, const Triangle& tri) {
+    double n[3];
+    tri.normal_double(n);
+    const vdouble num = n[0] * (double(tri.v[0].x) - r.org_d[0]) +
+                        n[1] * (double(tri.v[0].y) - r.org_d[1]) +
+                        n[2] * (double(tri.v[0].z) - r.org_d[2]);
+    const vdouble den = n[0] * r.dir_d[0] + n[1] * r.dir_d[1] + n[2] * r.dir_d[2];
+    return __builtin_convertvector(num / den, vfloat);
+}
 
 // intersect_triangle for the lanes in `lanes`, each against its own closest
 // hit: the same operations in the same order, so the same bits. The rare
-// parts (an edge function of exactly zero, the double-precision distance of
-// a ray that passes the edge test) run lane by lane in scalar code.
+// recompute of an edge function of exactly zero runs lane by lane.
 inline void intersect_packet_triangle(const PacketRays& r, const Triangle& tri, uint32_t prim,
                                       LaneMask lanes, PacketHits& hits) {
     const ShearedVertex a = shear_vertex(r, tri.v[0]), b = shear_vertex(r, tri.v[1]),
@@ -129,18 +150,17 @@ inline void intersect_packet_triangle(const PacketRays& r, const Triangle& tri, 
     }
     const vint outside = ((U < zero) | (V < zero) | (W < zero)) & ((U > zero) | (V > zero) | (W > zero));
     const vfloat det = U + V + W;
-    for (LaneMask inside = lanes & ~lane_bits(outside | (det == zero)); inside;
-         inside &= inside - 1) {
-        const int i = __builtin_ctz(inside);
-        const Vec3 o(r.org[0][i], r.org[1][i], r.org[2][i]), d(r.dir[0][i], r.dir[1][i], r.dir[2][i]);
-        const float tf = float(plane_distance(tri, o, d));
-        if (!(tf > r.tmin[i] && tf < hits.t[i])) continue;
-        const float inv = 1.0f / det[i];
-        hits.t[i] = tf;
-        hits.prim[i] = int32_t(prim);
-        hits.u[i] = V[i] * inv;
-        hits.v[i] = W[i] * inv;
-    }
+    const LaneMask inside = lanes & ~lane_bits(outside | (det == zero));
+    if (!inside) return;
+    // The distance of the lanes that pass the edge test (most of them hit:
+    // this runs about once per hit, not per test).
+    const vfloat t = plane_distances(r, tri);
+    const vint closer = lane_vector(inside) & (t > r.tmin) & (t < hits.t);
+    const vfloat inv = 1.0f / det;
+    hits.t = select(closer, t, hits.t);
+    hits.u = select(closer, V * inv, hits.u);
+    hits.v = select(closer, W * inv, hits.v);
+    hits.prim = closer ? int32_t(prim) + vint{} : hits.prim;
 }
 
 // The mailbox of a packet: which lanes already tested a triangle. A lane
@@ -295,7 +315,11 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
             r.tmin[i] = float(tmin * scale), tmax[i] = float(tm * scale);
         }
     }
-    for (int c = 0; c < 3; ++c) r.idir[c] = 1.0f / r.dir[c];
+    for (int c = 0; c < 3; ++c) {
+        r.idir[c] = 1.0f / r.dir[c];
+        r.org_d[c] = to_double(r.org[c]);
+        r.dir_d[c] = to_double(r.dir[c]);
+    }
     // As in trace_one, summed in the same order.
     constexpr float kCrossUlps = 1.0f / (1 << 20);
     r.cross_a = kCrossUlps *
@@ -384,9 +408,7 @@ inline void trace_packets(const TreeView& view, const RayBatch& batch, const Hit
         PacketRays rays;
         vfloat t0, t1, tmax;
         const LaneMask active = setup_packet(view, batch, first, n, rays, t0, t1, tmax);
-        PacketHits hits;
-        hits.t = tmax;
-        std::fill(hits.prim, hits.prim + kLanes, -1);
+        PacketHits hits{tmax, vfloat{}, vfloat{}, vint{} - 1};
         if (active) trace_packet(view, rays, active, t0, t1, hits);
         for (int i = 0; i < n; ++i) {
             const size_t k = first + size_t(i);
