@@ -44,14 +44,19 @@ RANGES = {
 FOV_RANGE = (0.01, 179.9)  # look_at's fov_deg, degrees
 MAX_COORDINATE = 1e30       # camera position, so that float32 origins stay finite
 RAY_ORDERS = ("image", "tiles")
-TILE = 8  # pixels on a side of tile_order's tiles
+# Pixels on a side of tile_order's tiles: a 16-ray packet is one tile, an
+# 8-ray one half of it. Square packets share more nodes than rows do: 4 x 4
+# traced about 3% faster than 8 x 2, and 8 x 2 12% faster than 16 x 1
+# (kd, primary rays on bunny and dragon, 2026-11-30).
+TILE = 4
 
 
 def tile_order(width: int, height: int, tile: int = TILE) -> np.ndarray:
     """The pixels (row-major indices) tile by tile: tiles of `tile` x `tile`
     pixels in row-major order over the image, the pixels row-major inside a
-    tile (the right and bottom tiles are cut at the image's edge). So 4, 8 or
-    16 consecutive pixels - one ray packet - are one or two rows of a tile.
+    tile (the right and bottom tiles are cut at the image's edge). So with
+    the default 4 x 4 tiles, 4, 8 or 16 consecutive pixels - one ray packet -
+    are one, two or four rows of a tile.
     `image[tile_order(w, h)]` puts an image's pixels in this order, and
     `out[tile_order(w, h)] = traced` puts them back."""
     _check_size(width, height)

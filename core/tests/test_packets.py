@@ -13,7 +13,7 @@ import pytest
 
 import bsplab
 from bsplab import scenes, workloads
-from bsplab.camera import Camera, tile_order
+from bsplab.camera import TILE, Camera, tile_order
 
 from conftest import SCENE_IDS, load_scene
 from test_hits_only import HITS, assert_same_hits, family_rays
@@ -120,23 +120,28 @@ def test_packet_width_is_the_levels_lanes():
     assert f["packet_width"] == {"sse2": 4, "avx2": 8, "avx512": 16}[f["selected"]]
 
 
+@pytest.mark.parametrize("tile", [TILE, 8])
 @pytest.mark.parametrize("width, height", [(16, 16), (13, 9), (1, 20), (20, 1), (8, 8)])
-def test_tile_order_visits_each_pixel_once_tile_by_tile(width, height):
-    order = tile_order(width, height)
+def test_tile_order_visits_each_pixel_once_tile_by_tile(width, height, tile):
+    order = tile_order(width, height, tile)
     assert sorted(order.tolist()) == list(range(width * height))
     y, x = np.divmod(order, width)
-    tiles = (y // 8) * -(-width // 8) + x // 8
+    tiles = (y // tile) * -(-width // tile) + x // tile
     assert (np.diff(tiles) >= 0).all(), "tiles one after another, row-major"
     # Inside a tile: row-major, so the first row of the first tile leads.
-    first = order[: min(8, width)]
-    assert first.tolist() == list(range(min(8, width)))
+    first = order[: min(tile, width)]
+    assert first.tolist() == list(range(min(tile, width)))
 
 
 def test_tile_order_of_a_16_by_16_image():
-    order = tile_order(16, 16)
+    order = tile_order(16, 16, tile=8)
     # The first tile's rows 0 and 1, then on to row 7; then the tile to its right.
     assert order[:16].tolist() == list(range(8)) + list(range(16, 24))
     assert order[64:72].tolist() == list(range(8, 16))
+    # The default tiles: a 16-ray packet is one 4 x 4 tile.
+    assert TILE == 4
+    assert tile_order(16, 16)[:16].tolist() == [0, 1, 2, 3, 16, 17, 18, 19, 32, 33, 34, 35,
+                                                48, 49, 50, 51]
     with pytest.raises(ValueError, match="tile must be a positive integer"):
         tile_order(16, 16, tile=0)
     with pytest.raises(ValueError, match="width must be a positive integer"):

@@ -1,5 +1,5 @@
 // The packet kernel: a group of coherent rays (consecutive rays of the batch,
-// e.g. a row pair of a screen tile) traced together through kd and general
+// e.g. a 4 x 4 screen tile: camera.tile_order) traced together through kd and general
 // nodes, one ray per SIMD lane. Included by kernels/trace_kernels.cpp only,
 // inside the namespace of one instruction-set level, like single_ray.hpp.
 //
