@@ -15,11 +15,20 @@
 // each visiting the node's children in its own order; the lanes of one never
 // see the other's cells, and the packet goes on coherent below the node.
 #pragma once
-#include <cstdint>
-#include <cstring>
 #include <immintrin.h>
 
-#include "single_ray.hpp"
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+
+#include "../traverse.hpp"
+#include "../tree.hpp"
+#include "tree_view.hpp"
+
+#ifndef BSPLAB_ISA_NS
+#error "packet.hpp is compiled per instruction set: include it from trace_kernels.cpp"
+#endif
 
 namespace bsp::BSPLAB_ISA_NS {
 namespace {
