@@ -70,6 +70,16 @@ def tile_order(width: int, height: int, tile: int = TILE) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
+def image_order(values: dict, order: np.ndarray) -> dict:
+    """Per-ray arrays traced in `order` (e.g. `tile_order(w, h)`), each put
+    back in image order."""
+    out = {}
+    for key, traced in values.items():
+        out[key] = np.empty_like(traced)
+        out[key][order] = traced
+    return out
+
+
 def _is_number(value: Any) -> bool:
     """True for Python/numpy reals, but not for bools."""
     return (isinstance(value, (int, float, np.integer, np.floating))

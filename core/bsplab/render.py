@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from . import checks
-from .camera import Camera, tile_order
+from .camera import Camera, image_order, tile_order
 from .tree import Tree
 
 RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests", "heat_culled")
@@ -111,13 +111,7 @@ def trace_pixels(tree: Tree, camera: Camera, width: int, height: int, *, threads
     traced = tree.intersect(o, d, threads=threads, cull=cull, counters=counted,
                             packets=packets, progress=progress)
     seconds = time.perf_counter() - start
-    if not packets:
-        return traced, directions, seconds
-    hits = {}
-    for key, values in traced.items():
-        hits[key] = np.empty_like(values)
-        hits[key][order] = values
-    return hits, directions, seconds
+    return (image_order(traced, order) if packets else traced), directions, seconds
 
 
 def counter_stats(hits: dict | None) -> dict:

@@ -10,11 +10,13 @@ them trace which workload."""
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from ..camera import image_order, tile_order
 from .spec import Spec
 from .timing import Tracer
 
@@ -46,16 +48,28 @@ def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
                                          threads=1, counters=False))
 
 
+def _packets(tree, rays: Rays, spec: Spec) -> Tracer:
+    """Camera rays in packets, tile by tile: the path `render()`'s shaded,
+    normal and depth modes take. The rays are put in tile order once, here;
+    the time is the trace's call, as for `hits_only` (putting the hits back
+    in the rays' order for the check against Embree is not timed)."""
+    order = tile_order(spec.width, spec.height)
+    o, d = rays.origins[order], rays.directions[order]
+    last = {"seconds": 0.0}
+
+    def run():
+        start = time.perf_counter()
+        tiled = tree.intersect(o, d, tmax=rays.tmax, threads=1, counters=False, packets=True)
+        last["seconds"] = time.perf_counter() - start
+        return image_order(tiled, order)
+    return Tracer(run, lambda: last["seconds"])
+
+
 # Per workload, the hits-only paths a spec with `hits_only = true` times, by
-# name (one of HITS_ONLY_PATHS).
-#
-# >>> Where the packet path goes. Once `Tree.intersect(..., packets=True)` is
-# >>> in main, the one entry `"packets": <factory>` under "primary" (a factory
-# >>> like `_single_rays` passing packets=True, the rays in the camera's tile
-# >>> order if it needs them) makes `bench` time it, check its hits against
-# >>> Embree's and show its columns.
+# name (one of HITS_ONLY_PATHS). Packets pay on coherent rays only: the
+# camera's, in tile order.
 HITS_ONLY_TRACERS: dict[str, dict[str, TracerFactory]] = {
-    "primary": {"hits_only": _single_rays},
+    "primary": {"hits_only": _single_rays, "packets": _packets},
     "ao": {"hits_only": _single_rays},
     "diffuse": {"hits_only": _single_rays},
     "random": {"hits_only": _single_rays},
