@@ -353,8 +353,9 @@ inline void child_lanes(vfloat t_lo, vfloat t_hi, vfloat t0, vfloat t1, LaneMask
     leave = group & ~lane_bits(t_lo > t1);
 }
 
-// The deepest trees (depth 64) push at most three cells per level: the exit
-// child, and a split packet's second group's entry and exit.
+// Trees are at most 64 levels deep (build_tree.cpp caps the depth), and a
+// packet pushes at most three cells per level of its path: the exit child,
+// and a split packet's deferred group's entry and exit.
 constexpr int kPacketStack = 3 * 64 + 8;
 
 // Traces one packet's active lanes to their closest hits.
