@@ -24,6 +24,7 @@
 
 #include "../traverse.hpp"
 #include "../tree.hpp"
+#include "../triangle.hpp"
 #include "tree_view.hpp"
 
 #ifndef BSPLAB_ISA_NS
@@ -134,6 +135,18 @@ inline vfloat plane_distances(const PacketRays& r, const Triangle& tri) {
     return __builtin_convertvector(num / den, vfloat);
 }
 
+// plane_distance for the lanes in `lanes` one by one (the other lanes: 0).
+inline vfloat plane_distances_of(const PacketRays& r, const Triangle& tri, LaneMask lanes) {
+    vfloat t{};
+    for (; lanes; lanes &= lanes - 1) {
+        const int i = __builtin_ctz(lanes);
+        const Vec3 o(r.org[0][i], r.org[1][i], r.org[2][i]);
+        const Vec3 d(r.dir[0][i], r.dir[1][i], r.dir[2][i]);
+        t[i] = float(plane_distance(tri, o, d));
+    }
+    return t;
+}
+
 // intersect_triangle for the lanes in `lanes`, each against its own closest
 // hit: the same operations in the same order, so the same bits. The rare
 // recompute of an edge function of exactly zero runs lane by lane.
@@ -162,8 +175,10 @@ inline void intersect_packet_triangle(const PacketRays& r, const Triangle& tri, 
     const LaneMask inside = lanes & ~lane_bits(outside | (det == zero));
     if (!inside) return;
     // The distance of the lanes that pass the edge test (most of them hit:
-    // this runs about once per hit, not per test).
-    const vfloat t = plane_distances(r, tri);
+    // this runs about once per hit, not per test). A lane or two, as in
+    // packets that spread over small triangles, take the scalar division.
+    const vfloat t = __builtin_popcount(inside) <= 2 ? plane_distances_of(r, tri, inside)
+                                                     : plane_distances(r, tri);
     const vint closer = lane_vector(inside) & (t > r.tmin) & (t < hits.t);
     const vfloat inv = 1.0f / det;
     hits.t = select(closer, t, hits.t);
