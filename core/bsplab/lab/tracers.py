@@ -10,13 +10,11 @@ them trace which workload."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
-from ..camera import image_order, tile_order
 from .spec import Spec
 from .timing import Tracer
 
@@ -49,20 +47,11 @@ def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
 
 
 def _packets(tree, rays: Rays, spec: Spec) -> Tracer:
-    """Camera rays in packets, tile by tile: the path `render()`'s shaded,
-    normal and depth modes take. The rays are put in tile order once, here;
-    the time is the trace's call, as for `hits_only` (putting the hits back
-    in the rays' order for the check against Embree is not timed)."""
-    order = tile_order(spec.width, spec.height)
-    o, d = rays.origins[order], rays.directions[order]
-    last = {"seconds": 0.0}
-
-    def run():
-        start = time.perf_counter()
-        tiled = tree.intersect(o, d, tmax=rays.tmax, threads=1, counters=False, packets=True)
-        last["seconds"] = time.perf_counter() - start
-        return image_order(tiled, order)
-    return Tracer(run, lambda: last["seconds"])
+    """Consecutive rays in SIMD packets, without counters: the path
+    `render()`'s shaded, normal and depth modes take. It pays on coherent
+    rays only: the primary ones, which the lab makes in tile order."""
+    return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
+                                         threads=1, counters=False, packets=True))
 
 
 # Per workload, the hits-only paths a spec with `hits_only = true` times, by
