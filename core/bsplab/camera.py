@@ -62,12 +62,13 @@ def tile_order(width: int, height: int, tile: int = TILE) -> np.ndarray:
     _check_size(width, height)
     if not _is_int(tile) or tile <= 0:
         raise ValueError(f"tile_order: tile must be a positive integer, got {tile!r}")
-    y, x = np.divmod(np.arange(width * height, dtype=np.int64), width)
-    tiles_x = -(-width // tile)
-    tile_index = (y // tile) * tiles_x + x // tile
-    # Within a tile, row-major: (y % tile) * tile + x % tile.
-    key = (tile_index * tile + y % tile) * tile + x % tile
-    return np.argsort(key, kind="stable")
+    # The pixel indices padded with -1 to whole tiles, then tile rows,
+    # tiles, and rows inside tiles as axes: one pass, no sort.
+    tiles_y, tiles_x = -(-height // tile), -(-width // tile)
+    grid = np.full((tiles_y * tile, tiles_x * tile), -1, dtype=np.int64)
+    grid[:height, :width] = np.arange(width * height, dtype=np.int64).reshape(height, width)
+    order = grid.reshape(tiles_y, tile, tiles_x, tile).transpose(0, 2, 1, 3).ravel()
+    return order[order >= 0]
 
 
 def image_order(values: dict, order: np.ndarray) -> dict:
