@@ -43,6 +43,42 @@ RANGES = {
 }
 FOV_RANGE = (0.01, 179.9)  # look_at's fov_deg, degrees
 MAX_COORDINATE = 1e30       # camera position, so that float32 origins stay finite
+RAY_ORDERS = ("image", "tiles")
+# Pixels on a side of tile_order's tiles: a 16-ray packet is one tile, an
+# 8-ray one half of it. Square packets share more nodes than rows do: 4 x 4
+# traced about 3% faster than 8 x 2, and 8 x 2 12% faster than 16 x 1
+# (kd, primary rays on bunny and dragon, 2026-11-30).
+TILE = 4
+
+
+def tile_order(width: int, height: int, tile: int = TILE) -> np.ndarray:
+    """The pixels (row-major indices) tile by tile: tiles of `tile` x `tile`
+    pixels in row-major order over the image, the pixels row-major inside a
+    tile (the right and bottom tiles are cut at the image's edge). So with
+    the default 4 x 4 tiles, 4, 8 or 16 consecutive pixels - one ray packet -
+    are one, two or four rows of a tile.
+    `image[tile_order(w, h)]` puts an image's pixels in this order, and
+    `out[tile_order(w, h)] = traced` puts them back."""
+    _check_size(width, height)
+    if not _is_int(tile) or tile <= 0:
+        raise ValueError(f"tile_order: tile must be a positive integer, got {tile!r}")
+    # The pixel indices padded with -1 to whole tiles, then tile rows,
+    # tiles, and rows inside tiles as axes: one pass, no sort.
+    tiles_y, tiles_x = -(-height // tile), -(-width // tile)
+    grid = np.full((tiles_y * tile, tiles_x * tile), -1, dtype=np.int64)
+    grid[:height, :width] = np.arange(width * height, dtype=np.int64).reshape(height, width)
+    order = grid.reshape(tiles_y, tile, tiles_x, tile).transpose(0, 2, 1, 3).ravel()
+    return order[order >= 0]
+
+
+def image_order(values: dict, order: np.ndarray) -> dict:
+    """Per-ray arrays traced in `order` (e.g. `tile_order(w, h)`), each put
+    back in image order."""
+    out = {}
+    for key, traced in values.items():
+        out[key] = np.empty_like(traced)
+        out[key][order] = traced
+    return out
 
 
 def _is_number(value: Any) -> bool:
@@ -164,13 +200,17 @@ class Camera:
         return ((-0.5 * width + dx) * scale, (0.5 * width + dx) * scale,
                 (-0.5 * ycor * height + dy) * scale, (0.5 * ycor * height + dy) * scale)
 
-    def rays(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-        """Primary rays through pixel centres, row-major with row 0 = image top.
+    def rays(self, width: int, height: int, order: str = "image") -> tuple[np.ndarray, np.ndarray]:
+        """Primary rays through pixel centres, row-major with row 0 = image top;
+        with order="tiles", in `tile_order(width, height)` instead (coherent
+        runs of consecutive rays, for `Tree.intersect(..., packets=True)`).
 
         Returns `(origins, directions)`, both float32 `(H*W, 3)`; directions are
         unit length. Rays start at the eye; `clip_start`/`clip_end` are only
         carried along for the caller (they are view-axis depths in Blender).
         """
+        if order not in RAY_ORDERS:
+            raise ValueError(f"Camera.rays: order must be one of {RAY_ORDERS}, got {order!r}")
         xmin, xmax, ymin, ymax = self.viewplane(width, height)
         xs = xmin + (np.arange(width) + 0.5) * ((xmax - xmin) / width)
         ys = ymax - (np.arange(height) + 0.5) * ((ymax - ymin) / height)  # top row first
@@ -182,6 +222,8 @@ class Camera:
         axes = self.matrix_world[:3, :3] / np.linalg.norm(self.matrix_world[:3, :3], axis=0)
         dirs = local.reshape(-1, 3) @ axes.T
         dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        if order == "tiles":
+            dirs = dirs[tile_order(width, height)]
         origins = np.broadcast_to(self.matrix_world[:3, 3], dirs.shape)
         return origins.astype(np.float32), dirs.astype(np.float32)
 

@@ -127,7 +127,11 @@ def rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
     d = float_array(directions, "directions", (3,))
     if len(o) != len(d):
         raise ValueError(f"origins ({len(o)}) and directions ({len(d)}) differ in length")
-    zero = ~(d != 0).any(axis=1)
+    # A zero direction has every component +0 or -0: every bit but the sign
+    # clear. (On the raw bits: numpy's any(axis=1) over 3 columns costs ten
+    # times the trace's own setup.)
+    bits = d.view(np.uint32)
+    zero = ((bits[:, 0] | bits[:, 1] | bits[:, 2]) & np.uint32(0x7FFFFFFF)) == 0
     if zero.any():
         raise ValueError(f"{int(zero.sum())} directions have zero length "
                          f"(first at index {int(np.flatnonzero(zero)[0])})")

@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from . import checks
-from .camera import Camera
+from .camera import Camera, image_order, tile_order
 from .tree import Tree
 
 RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests", "heat_culled")
@@ -89,6 +89,31 @@ def counting(mode: str, counters) -> bool:
     return bool(counters)
 
 
+def packeted(packets, counted: bool, cull: bool) -> bool:
+    """Whether a render traces in ray packets: `packets` None means whenever
+    it may (hits only, no culling)."""
+    if packets is None:
+        return not counted and not cull
+    if not isinstance(packets, (bool, np.bool_)):
+        raise TypeError(f"packets must be True, False or None, got {packets!r}")
+    return bool(packets)
+
+
+def trace_pixels(tree: Tree, camera: Camera, width: int, height: int, *, threads: int,
+                 cull: bool, counted: bool, packets: bool, progress) -> tuple[dict, np.ndarray, float]:
+    """The hits of the camera's rays in image order, the rays' directions and
+    the trace's seconds. Packets trace the pixels tile by tile (coherent
+    packets) and the hits go back to their pixels."""
+    origins, directions = camera.rays(width, height)
+    order = tile_order(width, height) if packets else slice(None)
+    o, d = np.ascontiguousarray(origins[order]), np.ascontiguousarray(directions[order])
+    start = time.perf_counter()
+    traced = tree.intersect(o, d, threads=threads, cull=cull, counters=counted,
+                            packets=packets, progress=progress)
+    seconds = time.perf_counter() - start
+    return (image_order(traced, order) if packets else traced), directions, seconds
+
+
 def counter_stats(hits: dict | None) -> dict:
     """The render's per-ray counter statistics; None for each when the
     render traced on the hits-only path (not counted)."""
@@ -107,12 +132,14 @@ def counter_stats(hits: dict | None) -> dict:
 
 def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "shaded", *,
            threads: int = 0, cull: bool | None = None, counters: bool | None = None,
-           progress=None) -> tuple[np.ndarray, dict]:
+           packets: bool | None = None, progress=None) -> tuple[np.ndarray, dict]:
     """Renders an (H, W, 4) float32 RGBA image (row 0 = top) and its statistics.
     `cull` (leaf culling) defaults to on for the heat_culled mode only.
     `counters` defaults to the heatmap modes only: shaded, normal and depth
     trace on the hits-only path (the same image) and leave the counter
-    statistics None; counters=True counts them in the same single trace."""
+    statistics None; counters=True counts them in the same single trace.
+    `packets` defaults to on wherever it may (hits only, no culling): the
+    pixels are traced tile by tile in ray packets, the same image."""
     if not isinstance(tree, Tree):
         raise TypeError(f"tree must be a bsplab.Tree, got {type(tree).__name__}")
     if not isinstance(camera, Camera):
@@ -124,11 +151,10 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
     counted = counting(mode, counters)
     if cull is None:
         cull = mode == "heat_culled"
-    origins, directions = camera.rays(width, height)
-    start = time.perf_counter()
-    hits = tree.intersect(origins, directions, threads=threads, cull=cull, counters=counted,
-                          progress=progress)
-    seconds = time.perf_counter() - start
+    packets = packeted(packets, counted, bool(cull))
+    hits, directions, seconds = trace_pixels(tree, camera, width, height, threads=threads,
+                                             cull=cull, counted=counted, packets=packets,
+                                             progress=progress)
     image = np.ones((height * width, 4), np.float32)
     image[:, :3] = shade(mode, hits, directions, tree.triangles)
     n = width * height
@@ -143,5 +169,6 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
         "height": height,
         "mode": mode,
         "cull": bool(cull),
+        "packets": packets,
     }
     return image.reshape(height, width, 4), stats

@@ -48,7 +48,7 @@ class Tree:
         return self._tree.node_bytes()
 
     def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=False,
-                  counters=True, progress=None) -> dict:
+                  counters=True, packets=False, progress=None) -> dict:
         """Closest hits of the rays; see docs/api.md for the returned arrays.
         `tmin`/`tmax` are scalars or per-ray arrays; None means the default
         (0, and inf: no limit).
@@ -57,10 +57,19 @@ class Tree:
         is off by default: on our SAH trees, whose leaves hold 2-5 triangles,
         it removes many tests but rarely pays for itself (docs/cull_benchmark.md).
         `counters=False` traces on the hits-only path, compiled without the
-        per-ray counters: the same t, prim, u, v bit for bit, and only those."""
-        for name, value in (("cull", cull), ("counters", counters)):
+        per-ray counters: the same t, prim, u, v bit for bit, and only those.
+        `packets=True` (with counters=False, cull=False) traces consecutive
+        rays together, as many as `cpu_features()["packet_width"]`: the same
+        hits again, bit for bit, and faster when consecutive rays are coherent
+        (camera rays in tile order: `Camera.rays(w, h, order="tiles")`)."""
+        for name, value in (("cull", cull), ("counters", counters), ("packets", packets)):
             if not isinstance(value, (bool, np.bool_)):
                 raise TypeError(f"{name} must be True or False, got {value!r}")
+        if packets and counters:
+            raise ValueError("packets=True traces hits only: the counters are per-ray "
+                             "single-ray quantities; pass counters=False")
+        if packets and cull:
+            raise ValueError("packets=True traces without leaf culling; pass cull=False")
         o, d = checks.rays(origins, directions)
         n = len(o)
         lo = checks.ray_range(tmin, "tmin", n, default=0.0)
@@ -76,7 +85,7 @@ class Tree:
             out.update({name: np.empty(n, np.uint32) for name in COUNTERS})
         _core.intersect(self._tree, o, d, lo, hi, out["t"], out["prim"], out["u"], out["v"],
                         *(out.get(name) for name in COUNTERS),
-                        checks.threads(threads), bool(cull), progress)
+                        checks.threads(threads), bool(cull), progress, bool(packets))
         return out
 
     def __repr__(self) -> str:

@@ -51,9 +51,11 @@ def framing_camera(triangles: np.ndarray, fov_deg: float = 60.0) -> Camera:
 
 
 def primary_rays(triangles: np.ndarray, width: int, height: int,
-                 camera: Camera | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 camera: Camera | None = None, tiles: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Camera rays through the pixel centres, row by row, or with `tiles`
+    tile by tile (camera.tile_order), the order ray packets trace fastest."""
     cam = camera or framing_camera(triangles)
-    return cam.rays(width, height)
+    return cam.rays(width, height, order="tiles" if tiles else "image")
 
 
 def random_rays(triangles: np.ndarray, count: int, seed: int = 1):

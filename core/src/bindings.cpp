@@ -52,7 +52,9 @@ using Counter = std::optional<Out<uint32_t>>;
 void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, FloatIn tmin,
                FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u, Out<float> v,
                Counter steps, Counter general_steps, Counter tests, Counter culled, int threads,
-               bool cull, bsp::Progress* progress) {
+               bool cull, bsp::Progress* progress, bool packets) {
+    if (packets && cull)
+        throw std::invalid_argument("intersect: packets trace without culling (use cull=False)");
     const size_t n = origins.shape(0);
     auto check = [n](size_t m, const char* what) {
         if (m != n) throw std::invalid_argument(std::string(what) + " has the wrong length");
@@ -86,7 +88,10 @@ void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, F
                        counter(tests, "tests"),
                        counter(culled, "culled")};
     nb::gil_scoped_release release;
-    bsp::intersect(tree, rays, hits, threads, cull, progress);
+    if (packets)
+        bsp::intersect_packets(tree, rays, hits, threads, progress);
+    else
+        bsp::intersect(tree, rays, hits, threads, cull, progress);
 }
 
 nb::dict stats(const bsp::Tree& tree) {
@@ -325,10 +330,11 @@ NB_MODULE(_core, m) {
             nb::dict d;
             d["supported"] = f.supported;
             d["selected"] = f.selected;
+            d["packet_width"] = bsp::selected_kernels().packet_width;
             d["forced"] = f.forced.empty() ? nb::none() : nb::object(nb::str(f.forced.c_str()));
             return d;
         },
-        "The kernels' instruction-set levels: supported here, selected, forced by BSPLAB_ISA.");
+        "The kernels' instruction-set levels: supported here, selected, forced by BSPLAB_ISA; the selected level's rays per packet.");
     m.def("registry", &registry, "The methods, options and strategies of registry.hpp.");
     m.def(
         "options_for",
@@ -340,5 +346,5 @@ NB_MODULE(_core, m) {
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(), "tests"_a.none(),
           "culled"_a.none(),
-          "threads"_a, "cull"_a, "progress"_a.none());
+          "threads"_a, "cull"_a, "progress"_a.none(), "packets"_a = false);
 }

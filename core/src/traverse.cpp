@@ -10,19 +10,18 @@
 
 namespace bsp {
 
-void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
-               Progress* progress) {
-    const int given = (hits.steps != nullptr) + (hits.general_steps != nullptr) +
-                      (hits.tests != nullptr) + (hits.culled != nullptr);
-    if (given != 0 && given != 4)
-        throw std::invalid_argument("intersect: give all four counter arrays or none");
-    // One instantiation per box kind keeps the culling check out of the loop
-    // when off, one per counting policy keeps the counters out of the
-    // hits-only path.
-    const LeafBoxes boxes = cull ? tree.options.leaf_boxes : LeafBoxes::None;
-    const TraceRange trace = selected_kernels().single_ray[given == 4][int(boxes)];
+namespace {
+
+int counter_arrays(const HitBatch& hits) {
+    return (hits.steps != nullptr) + (hits.general_steps != nullptr) + (hits.tests != nullptr) +
+           (hits.culled != nullptr);
+}
+
+// Chunks of rays to threads, each chunk to the kernel. Chunks are a multiple
+// of every packet width, so a packet never straddles two chunks.
+void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatch& out,
+         int threads, Progress* progress) {
     const TreeView view = make_tree_view(tree);
-    const HitBatch& out = hits;
     constexpr size_t kChunk = 1024;
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
@@ -30,6 +29,30 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
         trace(view, rays, out, begin, end);
         if (progress) progress->add(units_per_ray * (end - begin));
     });
+}
+
+}  // namespace
+
+void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
+               Progress* progress) {
+    const int given = counter_arrays(hits);
+    if (given != 0 && given != 4)
+        throw std::invalid_argument("intersect: give all four counter arrays or none");
+    // One instantiation per box kind keeps the culling check out of the loop
+    // when off, one per counting policy keeps the counters out of the
+    // hits-only path.
+    const LeafBoxes boxes = cull ? tree.options.leaf_boxes : LeafBoxes::None;
+    run(selected_kernels().single_ray[given == 4][int(boxes)], tree, rays, hits, threads,
+        progress);
+}
+
+void intersect_packets(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+                       Progress* progress) {
+    if (counter_arrays(hits) != 0)
+        throw std::invalid_argument(
+            "intersect: packets trace hits only; the counters are single-ray quantities "
+            "(use counters=False with packets=True)");
+    run(selected_kernels().packets, tree, rays, hits, threads, progress);
 }
 
 }  // namespace bsp

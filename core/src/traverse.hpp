@@ -37,4 +37,11 @@ struct HitBatch {
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
                Progress* progress = nullptr);
 
+// The same closest hits, traced in packets of consecutive rays (as many as
+// the selected level's SIMD lanes; kernels/packet.hpp): fast when consecutive
+// rays are coherent, e.g. camera rays in tile order. Hits only, no culling:
+// throws std::invalid_argument when counter arrays are given.
+void intersect_packets(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+                       Progress* progress = nullptr);
+
 }  // namespace bsp

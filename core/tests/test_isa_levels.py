@@ -56,6 +56,7 @@ def cases():
         parts = [ray_families.family(f, tris, 300, 5) for f in ray_families.FAMILIES]
         o, d, tmax = (np.concatenate(x) for x in zip(*parts))
         po, pd = workloads.primary_rays(tris, 48, 40)
+        to, td = workloads.primary_rays(tris, 48, 40, tiles=True)
         for method in ("kd", "rbsp", "bsp_wn+kd", "bsp_cn", "bsp_ize+kd"):
             tree = bsplab.build(tris, method=method)
             for cull in (False, True):
@@ -65,6 +66,11 @@ def cases():
                                                             counters=counters, threads=1)
                     yield tag + "/primary", tree.intersect(po, pd, cull=cull,
                                                            counters=counters, threads=1)
+            # Packets: each level's own width (4, 8, 16 lanes), the same hits.
+            tag = f"{scene}/{method}/packets"
+            yield tag + "/families", tree.intersect(o, d, tmax=tmax, counters=False,
+                                                    packets=True, threads=1)
+            yield tag + "/tiles", tree.intersect(to, td, counters=False, packets=True, threads=1)
 
 
 def run_level(level: str, tmp_path: Path) -> tuple[dict, dict]:

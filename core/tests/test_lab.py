@@ -273,8 +273,14 @@ def test_bench_writes_a_row_per_scene_and_method(tmp_path):
                                   [float(x) for x in row["hits_only_s"].split()])
             assert len(per_round) == 2 and hits_only == pytest.approx(
                 float(np.median(per_round)), abs=0.006)
-            assert row["hits_only_unexplained"] == "0" and row["packets_s"] == ""
-        assert not any("packets" in name for name in rows[0])  # none traced yet
+            assert row["hits_only_unexplained"] == "0"
+            # Packets trace the primary rays only, with no wrong hit either.
+            assert (row["packets_s"] != "") == (workload == "primary")
+            if workload == "primary":
+                assert row["packets_unexplained"] == "0"
+                _ratio(r["packets Mray/s"])
+                _speed(r["packets × Embree speed"])
+        assert any("packets" in name for name in rows[0]) == (workload == "primary")
 
 
 def _fake_packets(wrong: bool):

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import scenes, workloads
+from ..camera import tile_order
 from .spec import Spec, build_options
 from .timing import PairedTimes, format_times, paired_rounds
 from .tracers import HITS_ONLY_PATHS, Rays, cell_tracers
@@ -72,7 +73,12 @@ def make_rays(spec: Spec, data: SceneData, embree) -> dict[str, Rays]:
     """The workloads' rays by name."""
     from .. import build
     o, d = data.camera.rays(spec.width, spec.height)
-    out = {"primary": Rays("primary", o, d, np.inf)}
+    # Primary rays tile by tile (camera.tile_order), for every tracer alike:
+    # neighbouring rays are coherent, as the packet path needs, and Embree
+    # gets the same order. (The secondary rays below start from the hits in
+    # image order, as before.)
+    order = tile_order(spec.width, spec.height)
+    out = {"primary": Rays("primary", o[order], d[order], np.inf)}
     if {"ao", "diffuse"} & set(spec.workloads):
         # Secondary rays start at the primary hits; Embree's answer is the
         # reference, so every tree gets the same rays.

@@ -46,16 +46,19 @@ def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
                                          threads=1, counters=False))
 
 
+def _packets(tree, rays: Rays, spec: Spec) -> Tracer:
+    """Consecutive rays in SIMD packets, without counters: the path
+    `render()`'s shaded, normal and depth modes take. It pays on coherent
+    rays only: the primary ones, which the lab makes in tile order."""
+    return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
+                                         threads=1, counters=False, packets=True))
+
+
 # Per workload, the hits-only paths a spec with `hits_only = true` times, by
-# name (one of HITS_ONLY_PATHS).
-#
-# >>> Where the packet path goes. Once `Tree.intersect(..., packets=True)` is
-# >>> in main, the one entry `"packets": <factory>` under "primary" (a factory
-# >>> like `_single_rays` passing packets=True, the rays in the camera's tile
-# >>> order if it needs them) makes `bench` time it, check its hits against
-# >>> Embree's and show its columns.
+# name (one of HITS_ONLY_PATHS). Packets pay on coherent rays only: the
+# camera's, in tile order.
 HITS_ONLY_TRACERS: dict[str, dict[str, TracerFactory]] = {
-    "primary": {"hits_only": _single_rays},
+    "primary": {"hits_only": _single_rays, "packets": _packets},
     "ao": {"hits_only": _single_rays},
     "diffuse": {"hits_only": _single_rays},
     "random": {"hits_only": _single_rays},

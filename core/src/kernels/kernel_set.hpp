@@ -20,6 +20,10 @@ struct KernelSet {
     const char* isa;
     // [counting][leaf boxes used for culling: None, Triangle, Clipped]
     TraceRange single_ray[2][3];
+    // Hits only, no culling: consecutive rays in packets of packet_width
+    // (kernels/packet.hpp), the same hits as single_ray[0][0].
+    TraceRange packets;
+    int packet_width;
 };
 
 namespace isa_sse2 { const KernelSet& kernel_set(); }

@@ -11,6 +11,7 @@
 // -ffp-contract=off on every level: no fused multiply-add, so each level's
 // arithmetic - and so its hits - is bit-identical to the baseline's.
 #include "kernel_set.hpp"
+#include "packet.hpp"
 #include "single_ray.hpp"
 
 #define BSPLAB_STR2(x) #x
@@ -25,6 +26,11 @@ __attribute__((flatten)) void single_ray_entry(const TreeView& view, const RayBa
     trace_single_rays<kBoxes, Counters>(view, rays, hits, begin, end);
 }
 
+__attribute__((flatten)) void packet_entry(const TreeView& view, const RayBatch& rays,
+                                           const HitBatch& hits, size_t begin, size_t end) {
+    trace_packets(view, rays, hits, begin, end);
+}
+
 constexpr LeafBoxes kNone = LeafBoxes::None, kTri = LeafBoxes::Triangle,
                     kClip = LeafBoxes::Clipped;
 
@@ -36,7 +42,9 @@ const KernelSet& kernel_set() {
         {{single_ray_entry<kNone, CountNothing>, single_ray_entry<kTri, CountNothing>,
           single_ray_entry<kClip, CountNothing>},
          {single_ray_entry<kNone, CountEvery>, single_ray_entry<kTri, CountEvery>,
-          single_ray_entry<kClip, CountEvery>}}};
+          single_ray_entry<kClip, CountEvery>}},
+        packet_entry,
+        kLanes};
     return set;
 }
 
