@@ -80,6 +80,9 @@ class JobInput:
     threads: int
     cull: bool
     compare_with_embree: bool
+    # The panel's Steps / Tests per Ray. Off, the hits-only modes render in
+    # packets; the heat maps count whatever it says.
+    count_steps: bool
     scene_name: str
 
 
@@ -169,8 +172,10 @@ class Job(WorkerJob):
                                           mode=inp.mode, threads=inp.threads,
                                           cull=inp.cull or inp.mode == "heat_culled",
                                           # The panel's Steps / Tests per Ray: counted
-                                          # in the same trace, in every mode.
-                                          counters=True, progress=self.render_progress)
+                                          # in the same trace, or None: render()'s
+                                          # default (packets where the mode allows).
+                                          counters=True if inp.count_steps else None,
+                                          progress=self.render_progress)
         self._check_cancelled()
         render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
                             mode=inp.mode, camera=inp.camera.name)

@@ -81,6 +81,7 @@ def read_scene(context, core):
         threads=settings.threads,
         cull=settings.cull,
         compare_with_embree=settings.compare_with_embree,
+        count_steps=settings.count_steps,
         scene_name=scene.name,
     )
 

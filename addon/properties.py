@@ -121,6 +121,13 @@ class BSPLabSettings(bpy.types.PropertyGroup):
                     "ray's segment there (needs leaf boxes; always on for Heat Culled)",
         default=False,
     )
+    count_steps: BoolProperty(
+        name="Count Steps & Tests",
+        description="Count every ray's node steps and triangle tests for the statistics. "
+                    "Off, the shaded, normal and depth modes trace in ray packets (faster; "
+                    "the same image) and the panel shows no counts. The heat maps always count",
+        default=True,
+    )
     render_mode: EnumProperty(
         name="Mode",
         description="What the preview shows",

@@ -128,6 +128,8 @@ def sections(stats):
             ("Size", "{} x {}".format(render.get("width", "-"), render.get("height", "-"))),
             ("Render Time", _seconds(render.get("seconds"))),
             ("Rays/s", _rate(render.get("rays_per_second"))),
+            ("Kernel", "{}{}".format(render.get("kernel", "-"),
+                                     ", packets" if render.get("packets") else "")),
             ("Steps / Ray", _number(render.get("mean_steps"))),
             ("Tests / Ray", _number(render.get("mean_tests"))),
             ("Culled / Ray", _number(render.get("mean_culled")) if render.get("cull", True)

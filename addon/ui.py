@@ -53,6 +53,7 @@ class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
         if "threads" in properties.BUILD_OPTIONS:  # not without the core
             col.prop(settings, "threads")
         col.prop(settings, "cull")
+        col.prop(settings, "count_steps")
         # Full width: the split layout would cut the checkbox's label short.
         row = layout.row()
         row.use_property_split = False

@@ -83,6 +83,20 @@ def test_render_modes(addon, core, test_scene, mode):
     assert np.allclose(utils.image_pixels_top_down(image), expected, atol=1e-6)
 
 
+def test_count_steps_off_renders_in_packets(addon, core, test_scene):
+    # The same picture through the packet path; the panel then has no counts.
+    scene = test_scene["scene"]
+    scene.bsplab.count_steps = False
+    assert bpy.ops.bsplab.build_render() == {'FINISHED'}
+    _, expected = core_render_of_scene(core, scene, 80, 60)
+    image = bpy.data.images[addon.preview.IMAGE_NAME]
+    assert np.allclose(utils.image_pixels_top_down(image), expected, atol=1e-6)
+    render = scene.bsplab.stats["render"]
+    assert render["packets"] is True
+    assert render["mean_steps"] is None and render["counters"] is False
+    assert "Kernel" in addon.stats.table(scene.bsplab.stats)
+
+
 def test_build_options_reach_the_core(addon, core, test_scene):
     settings = test_scene["scene"].bsplab
     settings.leaf_size = 8

@@ -63,7 +63,8 @@ def test_main_panel(addon, core, empty_scene):
     for name in ("traversal_cost", "intersect_cost", "empty_bonus", "max_depth", "leaf_size",
                  "leaf_boxes"):
         assert (name in props) == (name in params)
-    for name in ("preview_percentage", "render_mode", "compare_with_embree", "threads", "cull"):
+    for name in ("preview_percentage", "render_mode", "compare_with_embree", "threads", "cull",
+                 "count_steps"):
         assert name in props
     assert ("operator", "bsplab.build_render") in log
     assert ("label", "80 x 60 px") not in log  # factory resolution, not the test scene's
@@ -99,14 +100,16 @@ def test_stats_panel(addon, empty_scene):
                   "max_leaf_size": 5, "references": 15, "duplication": 1.25,
                   "bytes": 4096, "method": "kd"},
         "render": {"seconds": 0.01, "rays_per_second": 2.5e6, "mean_steps": 4.0,
-                   "mean_tests": 2.0, "hits": 10, "width": 4, "height": 3},
+                   "mean_tests": 2.0, "hits": 10, "width": 4, "height": 3,
+                   "kernel": "avx2", "packets": True},
         "embree": {"available": False, "message": "embreex is not installed"},
     })
     texts = [text for kind, text in draw(addon.ui.BSPLAB_PT_stats) if kind == "label"]
     for expected in ("Build Time", "500.0 ms", "Nodes", "7", "Leaves", "4", "Empty Leaves", "1",
                      "Tris / Leaf", "3.00", "Max Leaf Tris", "5", "References", "15",
                      "Duplication", "1.25x", "Memory", "4.0 KiB", "Render Time", "10.0 ms",
-                     "Rays/s", "2.50 M", "Steps / Ray", "4.00", "Tests / Ray", "2.00",
+                     "Rays/s", "2.50 M", "Kernel", "avx2, packets",
+                     "Steps / Ray", "4.00", "Tests / Ray", "2.00",
                      "embreex is not installed"):
         assert expected in texts
 

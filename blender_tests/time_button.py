@@ -35,6 +35,8 @@ def parse_args():
     p.add_argument("--preview", type=int, default=50)
     p.add_argument("--presses", type=int, default=5)
     p.add_argument("--method", default="kd")
+    p.add_argument("--no-counts", action="store_true",
+                   help="Count Steps & Tests off: the preview traced in packets")
     return p.parse_args(argv)
 
 
@@ -85,8 +87,11 @@ def main():
     settings.render_mode = "shaded"
     settings.preview_percentage = args.preview
     settings.compare_with_embree = False
+    if hasattr(settings, "count_steps"):
+        settings.count_steps = not args.no_counts
     print(f"time_button: Blender {bpy.app.version_string}, {args.scene}, {args.method}, "
-          f"{args.preview}% of 1920x1080, kernels {bsplab.cpu_features()['selected']}")
+          f"{args.preview}% of 1920x1080, kernels {bsplab.cpu_features()['selected']}, "
+          f"counts {'off' if args.no_counts else 'on'}")
     walls = []
     for press in range(args.presses):
         start = time.perf_counter()

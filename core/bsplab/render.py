@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from . import checks
+from . import _core, checks
 from .camera import Camera, image_order, tile_order
 from .tree import Tree
 
@@ -170,5 +170,7 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
         "mode": mode,
         "cull": bool(cull),
         "packets": packets,
+        # The instruction-set level the kernels ran at (bsplab.cpu_features()).
+        "kernel": _core.cpu_features()["selected"],
     }
     return image.reshape(height, width, 4), stats

@@ -48,7 +48,7 @@ def _input(triangles, camera, *, width=48, height=32, **changes):
     values = dict(triangles=triangles, objects=1, instances=1,
                   camera=_spec(camera, width, height), method="kd", options={},
                   mode="shaded", threads=2, cull=False, compare_with_embree=True,
-                  scene_name="Scene")
+                  count_steps=True, scene_name="Scene")
     values.update(changes)
     return jobs.JobInput(**values)
 
@@ -88,6 +88,24 @@ def test_job_builds_renders_and_agrees_with_embree():
     assert embree["bsplab_seconds"] > 0 and embree["embree_seconds"] > 0
     jobs.check_result(job.result)  # hits > 0: no UserError
     assert job.fraction() == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("mode", ["shaded", "depth", "heat_steps"])
+def test_count_steps_off_renders_in_packets_the_same_image(mode):
+    # Off, the hits-only modes take render()'s packets: the same pixels, no
+    # counts for the panel; the heat maps count regardless (they are counts).
+    tris = scenes.generate("spheres")
+    cam = scenes.default_camera("spheres")
+    counted = _run(_input(tris, cam, mode=mode, compare_with_embree=False))
+    fast = _run(_input(tris, cam, mode=mode, compare_with_embree=False, count_steps=False))
+    assert counted.error is None and fast.error is None, (counted.error, fast.error)
+    assert np.array_equal(counted.result["image"], fast.result["image"])
+    on, off = counted.result["stats"]["render"], fast.result["stats"]["render"]
+    assert on["counters"] is True and on["packets"] is False and on["mean_steps"] > 1
+    heat = mode.startswith("heat")
+    assert off["counters"] is heat and off["packets"] is not heat
+    assert (off["mean_steps"] is None) is not heat
+    assert on["kernel"] == off["kernel"] == bsplab.cpu_features()["selected"]
 
 
 def test_every_ray_missing_is_a_user_error():
