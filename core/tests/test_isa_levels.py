@@ -32,9 +32,9 @@ import sys, json
 import numpy as np
 sys.path.insert(0, sys.argv[2])
 import bsplab
-from test_isa_levels import cases
+from test_isa_levels import CASES
 out = {}
-for name, hits in cases():
+for name, hits in CASES[sys.argv[3]]():
     for key, value in hits.items():
         out[name + "/" + key] = value
 np.savez(sys.argv[1], **out)
@@ -42,9 +42,9 @@ print(json.dumps(bsplab.cpu_features()))
 """
 
 
-@functools.lru_cache(maxsize=1)
-def expected_hits() -> dict:
-    return {f"{name}/{k}": v for name, hits in cases() for k, v in hits.items()}
+@functools.lru_cache(maxsize=2)
+def expected_hits(kind: str = "generated") -> dict:
+    return {f"{name}/{k}": v for name, hits in CASES[kind]() for k, v in hits.items()}
 
 
 def cases():
@@ -73,11 +73,34 @@ def cases():
             yield tag + "/tiles", tree.intersect(to, td, counters=False, packets=True, threads=1)
 
 
-def run_level(level: str, tmp_path: Path) -> tuple[dict, dict]:
+def shared_cases():
+    """(name, hits) of the kernels on the real meshes: kd on every shared
+    scene, a ^Kd tree with general nodes on two of them; primary rays (image
+    and tile order), random rays; counters, culling and packets."""
+    from bsplab import io, workloads
+    for path in workloads.shared_scene_paths():
+        tris = io.load_mesh(path)
+        po, pd = workloads.primary_rays(tris, 160, 120)
+        to, td = workloads.primary_rays(tris, 160, 120, tiles=True)
+        ro, rd = workloads.random_rays(tris, 20_000, seed=3)
+        methods = ("kd", "bsp_wn+kd") if path.stem in ("bunny", "sponza_dabrovic") else ("kd",)
+        for method in methods:
+            tree = bsplab.build(tris, method=method)
+            tag = f"{path.stem}/{method}"
+            for name, o, d in (("primary", po, pd), ("random", ro, rd)):
+                yield f"{tag}/{name}/hits_only", tree.intersect(o, d, counters=False)
+                yield f"{tag}/{name}/counted_culled", tree.intersect(o, d, cull=True)
+            yield f"{tag}/tiles/packets", tree.intersect(to, td, counters=False, packets=True)
+
+
+CASES = {"generated": cases, "shared": shared_cases}
+
+
+def run_level(level: str, tmp_path: Path, kind: str = "generated") -> tuple[dict, dict]:
     out = tmp_path / f"{level}.npz"
     env = dict(os.environ, BSPLAB_ISA=level)
     proc = subprocess.run([sys.executable, "-c", CASES_SCRIPT, str(out),
-                           str(Path(__file__).parent)],
+                           str(Path(__file__).parent), kind],
                           env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     features = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -137,7 +160,7 @@ def test_runs_on_a_cpu_with_only_sse2(tmp_path):
     out = tmp_path / "qemu64.npz"
     env = {k: v for k, v in os.environ.items() if k != "BSPLAB_ISA"}
     proc = subprocess.run([qemu, "-cpu", "qemu64", sys.executable, "-c", CASES_SCRIPT, str(out),
-                           str(Path(__file__).parent)],
+                           str(Path(__file__).parent), "generated"],
                           env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     features = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -148,3 +171,23 @@ def test_runs_on_a_cpu_with_only_sse2(tmp_path):
     assert got.keys() == expected.keys()
     for key, value in expected.items():
         assert np.array_equal(value.view(np.uint8), got[key].view(np.uint8)), key
+
+
+# Outside the sanitizer run: a kd build of every shared mesh per level.
+@pytest.mark.slow
+@pytest.mark.parametrize("level", LEVELS)
+def test_every_level_gives_the_same_hits_on_the_shared_scenes(level, tmp_path):
+    """The agreement matrix against Embree runs on the level chosen here;
+    every other level must give its hits bit for bit on the real meshes too."""
+    from bsplab import workloads
+    if not workloads.shared_scene_paths():
+        pytest.skip("no shared scenes here (../shared/scenes)")
+    if level not in SUPPORTED:
+        pytest.skip(f"this CPU lacks {level} (supported: {SUPPORTED})")
+    features, got = run_level(level, tmp_path, "shared")
+    assert features["selected"] == level
+    expected = expected_hits("shared")
+    assert got.keys() == expected.keys()
+    for key, value in expected.items():
+        assert np.array_equal(value.view(np.uint8), got[key].view(np.uint8)), (
+            f"{level}: {key} differs on {int((value != got[key]).sum())} rays")
