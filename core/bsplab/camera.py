@@ -224,8 +224,10 @@ class Camera:
         dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
         if order == "tiles":
             dirs = dirs[tile_order(width, height)]
-        origins = np.broadcast_to(self.matrix_world[:3, 3], dirs.shape)
-        return origins.astype(np.float32), dirs.astype(np.float32)
+        # A real (H*W, 3) array, not a broadcast view: every trace would copy
+        # a view into the contiguous rows the core reads.
+        origins = np.repeat(self.matrix_world[None, :3, 3].astype(np.float32), len(dirs), axis=0)
+        return origins, dirs.astype(np.float32)
 
     # -- serialization --------------------------------------------------------
 

@@ -335,6 +335,14 @@ NB_MODULE(_core, m) {
             return d;
         },
         "The kernels' instruction-set levels: supported here, selected, forced by BSPLAB_ISA; the selected level's rays per packet.");
+    m.def(
+        "rays_are_valid",
+        [](Vec3Array origins, Vec3Array directions) {
+            if (origins.shape(0) != directions.shape(0))
+                throw std::invalid_argument("origins and directions differ in length");
+            return bsp::rays_are_valid(origins.data(), directions.data(), origins.shape(0));
+        },
+        "origins"_a, "directions"_a, "All finite, no zero direction (checks.rays names the bad ones).");
     m.def("registry", &registry, "The methods, options and strategies of registry.hpp.");
     m.def(
         "options_for",

@@ -3,6 +3,7 @@
 // (kernels/, cpu_dispatch.cpp).
 #include "traverse.hpp"
 
+#include <bit>
 #include <stdexcept>
 
 #include "cpu_dispatch.hpp"
@@ -53,6 +54,23 @@ void intersect_packets(const Tree& tree, const RayBatch& rays, HitBatch& hits, i
             "intersect: packets trace hits only; the counters are single-ray quantities "
             "(use counters=False with packets=True)");
     run(selected_kernels().packets, tree, rays, hits, threads, progress);
+}
+
+bool rays_are_valid(const float* origins, const float* directions, size_t count) {
+    constexpr uint32_t kExponent = 0x7F800000u, kMagnitude = 0x7FFFFFFFu;
+    // Accumulated without branches, so that the loops vectorize.
+    uint32_t bad = 0;
+    for (size_t i = 0; i < 3 * count; ++i) {  // inf or NaN: every exponent bit set
+        bad |= uint32_t((std::bit_cast<uint32_t>(origins[i]) & kExponent) == kExponent);
+        bad |= uint32_t((std::bit_cast<uint32_t>(directions[i]) & kExponent) == kExponent);
+    }
+    for (size_t i = 0; i < 3 * count; i += 3) {  // +-0 in every component
+        const uint32_t any = std::bit_cast<uint32_t>(directions[i]) |
+                             std::bit_cast<uint32_t>(directions[i + 1]) |
+                             std::bit_cast<uint32_t>(directions[i + 2]);
+        bad |= uint32_t((any & kMagnitude) == 0);
+    }
+    return bad == 0;
 }
 
 }  // namespace bsp

@@ -259,3 +259,25 @@ def test_cli_error_is_one_line_without_traceback(tmp_path):
                         "--out", str(tmp_path / "x.png")], capture_output=True, text=True)
     assert r.returncode == 2
     assert r.stderr == f"error: {tmp_path}: is a directory, not a mesh file (.ply, .obj, .glb, .gltf, .stl, .off)\n"
+
+
+def test_the_cores_ray_check_agrees_with_numpy():
+    # checks.rays trusts _core.rays_are_valid's one pass and only then looks
+    # for the bad rays with numpy: the two must agree on every kind of value.
+    from bsplab import _core
+    rng = np.random.default_rng(4)
+    specials = np.array([np.nan, np.inf, -np.inf, 0.0, -0.0, 1e-45, -1e-45, 3e38, 1.0],
+                        np.float32)
+    for trial in range(300):
+        n = int(rng.integers(1, 40))
+        o = rng.normal(size=(n, 3)).astype(np.float32)
+        d = rng.normal(size=(n, 3)).astype(np.float32)
+        for arr in (o, d):
+            k = int(rng.integers(0, 3))
+            idx = rng.integers(0, n, k), rng.integers(0, 3, k)
+            arr[idx] = rng.choice(specials, k)
+        if trial % 3 == 0:
+            d[rng.integers(0, n)] = rng.choice(specials[3:5], 3)  # +-0 only
+        expected = bool(np.isfinite(o).all() and np.isfinite(d).all()
+                        and (d != 0).any(axis=1).all())
+        assert _core.rays_are_valid(o, d) is expected, (o, d)
