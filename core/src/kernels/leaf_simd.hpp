@@ -9,9 +9,8 @@
 // computed for the few lanes that pass, one by one (single_ray.hpp).
 //
 // The triangles are read from the scene's triangle array through the
-// leaf's references (no extra bytes per reference): the measurements in
-// docs/architecture.md found no copy in a SIMD layout that paid on our
-// leaves (3 references on average).
+// leaf's references, no copy in a SIMD layout: 0 extra bytes per reference
+// (docs/architecture.md says what the copies would cost and what was measured).
 // Included by single_ray.hpp only, inside one instruction-set level's
 // namespace (see trace_kernels.cpp).
 #pragma once
@@ -57,8 +56,8 @@ inline uint32_t lane_bits(Lanes<16>::I m) {
 
 // The components kx, ky, kz (the ray's shear order) of vertex `vertex` of
 // the triangles of the block, one lane each. Lanes past the leaf's end
-// repeat its last triangle: a copy of a real triangle never takes the rare
-// double path by accident, and its lane is masked out of the answer.
+// repeat its last triangle (loads from a line already in cache, no branch);
+// their lanes are masked out of the answer and of the double recompute.
 template <uint32_t L, size_t... J>
 inline void gather_vertex(const Triangle* tris, const uint32_t* list, uint32_t count, int vertex,
                           const int k[3], typename Lanes<L>::F out[3],
