@@ -115,6 +115,16 @@ struct CountNothing {
     void store(const HitBatch&, size_t) const {}
 };
 
+// Leaves of this many triangles or more take the SIMD blocks on the
+// hits-only path. Smaller leaves - nearly all of a SAH tree's - stay scalar:
+// blocks for them ran fewer instructions (-4 % to -13 % of the trace,
+// callgrind) but took more time against Embree in paired rounds (primary
+// rays on sponza and sibenik -8 to -10 % with blocks from 2 triangles up,
+// -4 % from 5 up); from 8 up the shared scenes' kd trees time as before and
+// trees with big leaves (intersect_cost 0.3) trace random rays 10-19 %
+// faster (docs/architecture.md has the figures).
+constexpr uint32_t kSimdLeafMin = 8;
+
 // The hits-only path's leaf: the edge functions of up to `L` triangles at
 // a time in SIMD (leaf_simd.hpp), then, for the lanes that pass, in leaf
 // order, the cull box, the plane distance and u, v as in intersect_triangle.
@@ -130,14 +140,18 @@ struct CountNothing {
 // against a hit.t that has only shrunk. (A culled triangle never entered the
 // mailbox in the first place.) The block tests all its lanes anyway, so a
 // mailbox could only save the plane distance of a passing lane: it saved
-// 0.3 % of the instructions on bunny, sponza and conference, within the noise
-// of the paired timings, so this path goes without. (One-triangle leaves keep
-// the scalar loop, mailbox included.)
+// 0.3 % of the instructions on bunny, sponza and conference and no time in
+// paired rounds, so this path goes without. (Smaller leaves keep the
+// scalar loop, mailbox included.)
+//
+// noinline (and flatten, so that the shared inline functions it calls are
+// still inlined, see trace_kernels.cpp): inlined, the blocks' code made the
+// rest of the traversal loop slower even where no leaf took them.
 template <uint32_t L, LeafBoxes kBoxes>
-inline void intersect_leaf_hits_only(const TreeView& tree, Node node, const uint32_t* list,
-                                     uint32_t n_refs, const ShearedRay& sray, const float org[3],
-                                     const float dir[3], float t0, float t1, float tmin,
-                                     Closest& hit) {
+__attribute__((noinline, flatten)) void intersect_leaf_hits_only(
+    const TreeView& tree, Node node, const uint32_t* list, uint32_t n_refs,
+    const ShearedRay& sray, const float org[3], const float dir[3], float t0, float t1,
+    float tmin, Closest& hit) {
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
         seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
@@ -167,7 +181,7 @@ inline void intersect_leaf_hits_only(const TreeView& tree, Node node, const uint
 // Tests the triangles of leaf `index` (node `node`) over the ray's range
 // [t0, t1] in it, keeping the closest hit in `hit`. The counting path tests
 // one triangle at a time, so that its counts of tests and culls keep their
-// meaning; the hits-only path tests leaves of two or more in SIMD blocks.
+// meaning; the hits-only path tests big leaves in SIMD blocks.
 template <LeafBoxes kBoxes, class Counters>
 inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
                            const float org[3], const float dir[3], float t0, float t1, float tmin,
@@ -175,17 +189,8 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
     const uint32_t n_refs = node.count();
     const uint32_t* list =
         n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
-    // One triangle is tested alone: a block would gather it into every lane
-    // for nothing (+13 % instructions on conference, whose walls sit in
-    // one-triangle leaves). Blocks of 4 up to 4 triangles, of the level's
-    // widest registers beyond (fewer instructions than blocks of 4 there).
     if constexpr (std::is_same_v<Counters, CountNothing>) {
-        if (n_refs >= 2 && (n_refs <= 4 || kWideLanes == 4)) {
-            intersect_leaf_hits_only<4, kBoxes>(tree, node, list, n_refs, sray, org, dir, t0, t1,
-                                                tmin, hit);
-            return;
-        }
-        if (n_refs > 4) {
+        if (n_refs >= kSimdLeafMin) {
             intersect_leaf_hits_only<kWideLanes, kBoxes>(tree, node, list, n_refs, sray, org,
                                                          dir, t0, t1, tmin, hit);
             return;
