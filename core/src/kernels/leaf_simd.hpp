@@ -11,8 +11,8 @@
 // The triangles are read from the scene's triangle array through the
 // leaf's references, no copy in a SIMD layout: 0 extra bytes per reference
 // (docs/architecture.md says what the copies would cost and what was measured).
-// Included by single_ray.hpp only, inside one instruction-set level's
-// namespace (see trace_kernels.cpp).
+// Included by single_ray.hpp only (which checks it is compiled per
+// instruction set), inside one level's namespace (see trace_kernels.cpp).
 #pragma once
 #include <immintrin.h>
 
@@ -21,21 +21,14 @@
 
 #include "../triangle.hpp"
 
-#ifndef BSPLAB_ISA_NS
-#error "leaf_simd.hpp is compiled per instruction set: include it from trace_kernels.cpp"
-#endif
-
 namespace bsp::BSPLAB_ISA_NS {
 namespace {
 
-// The widest block this level's registers hold.
-#if defined(__AVX512F__)
-constexpr uint32_t kWideLanes = 16;
-#elif defined(__AVX2__)
-constexpr uint32_t kWideLanes = 8;
-#else
-constexpr uint32_t kWideLanes = 4;
-#endif
+// The widest block this level's registers hold: GCC's largest alignment is
+// the widest vector register's size, 16 bytes on SSE2, 32 with AVX2, 64 with
+// AVX-512 - 4, 8 or 16 floats.
+constexpr uint32_t kWideLanes = __BIGGEST_ALIGNMENT__ / sizeof(float);
+static_assert(kWideLanes == 4 || kWideLanes == 8 || kWideLanes == 16, "an x86-64 vector width");
 
 template <uint32_t L>
 struct Lanes {
@@ -43,13 +36,18 @@ struct Lanes {
     typedef int32_t I __attribute__((vector_size(4 * L)));
 };
 
-// One bit per lane whose mask is set (all ones), lane 0 in bit 0.
-inline uint32_t lane_bits(Lanes<4>::I m) { return uint32_t(_mm_movemask_ps(__m128(m))); }
+// One bit per lane whose mask is set (all ones), lane 0 in bit 0, for each
+// block width. (packet.hpp has lane_bits for its own, widest, width only.)
+inline uint32_t block_lane_bits(Lanes<4>::I m) {
+    return uint32_t(_mm_movemask_ps(__m128(m)));
+}
 #if defined(__AVX2__)
-inline uint32_t lane_bits(Lanes<8>::I m) { return uint32_t(_mm256_movemask_ps(__m256(m))); }
+inline uint32_t block_lane_bits(Lanes<8>::I m) {
+    return uint32_t(_mm256_movemask_ps(__m256(m)));
+}
 #endif
 #if defined(__AVX512F__)
-inline uint32_t lane_bits(Lanes<16>::I m) {
+inline uint32_t block_lane_bits(Lanes<16>::I m) {
     return uint32_t(_mm512_movepi32_mask(__m512i(m)));
 }
 #endif
@@ -110,13 +108,13 @@ inline EdgeBlock<L> edge_test_block(const ShearedRay& r, const Triangle* tris,
     e.V = Ax * Cy - Ay * Cx;
     e.W = Bx * Ay - By * Ax;
     const uint32_t live = count >= 32 ? ~0u : (1u << count) - 1;
-    uint32_t zero = lane_bits(I((e.U == 0.0f) | (e.V == 0.0f) | (e.W == 0.0f))) & live;
+    uint32_t zero = block_lane_bits(I((e.U == 0.0f) | (e.V == 0.0f) | (e.W == 0.0f))) & live;
     for (; zero; zero &= zero - 1) recompute_in_double<L>(e, uint32_t(__builtin_ctz(zero)), xy);
     // Mixed signs miss; NaN compares false everywhere, as in the scalar test.
     const I mixed = ((e.U < 0.0f) | (e.V < 0.0f) | (e.W < 0.0f)) &
                     ((e.U > 0.0f) | (e.V > 0.0f) | (e.W > 0.0f));
     const I flat = (e.U + e.V + e.W) == 0.0f;
-    e.passed = ~lane_bits(mixed | flat) & live;
+    e.passed = ~block_lane_bits(mixed | flat) & live;
     return e;
 }
 
