@@ -71,6 +71,16 @@ def cases():
             yield tag + "/families", tree.intersect(o, d, tmax=tmax, counters=False,
                                                     packets=True, threads=1)
             yield tag + "/tiles", tree.intersect(to, td, counters=False, packets=True, threads=1)
+    # Leaves of up to 41 triangles, exact ties, rays through shared edges
+    # (test_leaf_simd.py): each level's SIMD leaf blocks (4, 8 or 16 lanes).
+    from test_leaf_simd import TREES, big_leaf_scene, lattice_rays
+    o, d = lattice_rays()
+    for i, options in enumerate(TREES):
+        tree = bsplab.build(big_leaf_scene(), method="kd", **options)
+        for cull in (False, True):
+            for counters in (False, True):
+                yield f"big_leaf/{i}/cull={cull}/counters={counters}", tree.intersect(
+                    o, d, cull=cull, counters=counters, threads=1)
 
 
 def shared_cases():

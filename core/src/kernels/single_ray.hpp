@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include "../traverse.hpp"
 #include "../triangle.hpp"
+#include "leaf_simd.hpp"
 #include "tree_view.hpp"
 
 #ifndef BSPLAB_ISA_NS
@@ -113,8 +115,73 @@ struct CountNothing {
     void store(const HitBatch&, size_t) const {}
 };
 
+// Leaves of this many triangles or more take the SIMD blocks on the
+// hits-only path. Smaller leaves - nearly all of a SAH tree's - stay scalar:
+// blocks for them ran fewer instructions (-4 % to -13 % of the trace,
+// callgrind) but took more time against Embree in paired rounds (primary
+// rays on sponza and sibenik -8 to -10 % with blocks from 2 triangles up,
+// -4 % from 5 up); from 8 up the shared scenes' kd trees time as before and
+// trees with big leaves (intersect_cost 0.3) trace random rays 10-19 %
+// faster (docs/architecture.md has the figures).
+constexpr uint32_t kSimdLeafMin = 8;
+
+// The hits-only path's leaf: the edge functions of up to `L` triangles at
+// a time in SIMD (leaf_simd.hpp), then, for the lanes that pass, in leaf
+// order, the cull box, the plane distance and u, v as in intersect_triangle.
+// Every lane's arithmetic is the scalar test's, and the passing lanes meet
+// the running hit.t (strict <) and the shrinking segment box in the same
+// order as the scalar loop's triangles, so the closest hit, and which of
+// equally close triangles is kept (the first), are the scalar path's.
+//
+// No mailbox here. Re-testing a triangle that an earlier leaf of this ray
+// tested (and did not cull) cannot change the hit: if it hit then, hit.t has
+// been <= its t since, and the strict < rejects it now; if it missed, it
+// misses again, the same arithmetic giving the same edge functions and t
+// against a hit.t that has only shrunk. (A culled triangle never entered the
+// mailbox in the first place.) The block tests all its lanes anyway, so a
+// mailbox could only save the plane distance of a passing lane: it saved
+// 0.3 % of the instructions on bunny, sponza and conference and no time in
+// paired rounds, so this path goes without. (Smaller leaves keep the
+// scalar loop, mailbox included.)
+//
+// noinline (and flatten, so that the shared inline functions it calls are
+// still inlined, see trace_kernels.cpp): inlined, the blocks' code made the
+// rest of the traversal loop slower even where no leaf took them.
+template <uint32_t L, LeafBoxes kBoxes>
+__attribute__((noinline, flatten)) void intersect_leaf_hits_only(
+    const TreeView& tree, Node node, const uint32_t* list, uint32_t n_refs,
+    const ShearedRay& sray, const float org[3], const float dir[3], float t0, float t1,
+    float tmin, Closest& hit) {
+    SegmentBox seg;
+    if constexpr (kBoxes != LeafBoxes::None)
+        seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+    for (uint32_t first = 0; first < n_refs; first += L) {
+        const EdgeBlock<L> e =
+            edge_test_block<L>(sray, tree.tris, list + first, std::min(L, n_refs - first));
+        for (uint32_t lanes = e.passed; lanes; lanes &= lanes - 1) {
+            const uint32_t lane = uint32_t(__builtin_ctz(lanes));
+            const uint32_t p = list[first + lane];
+            if constexpr (kBoxes != LeafBoxes::None) {
+                const uint32_t box = kBoxes == LeafBoxes::Triangle ? p : node.first + first + lane;
+                if (seg.misses(tree.boxes[box])) continue;
+            }
+            const float t = float(plane_distance(tree.tris[p], sray.org, sray.dir));
+            if (!(t > tmin && t < hit.t)) continue;
+            const float inv = 1.0f / (e.U[lane] + e.V[lane] + e.W[lane]);
+            hit.t = t;
+            hit.prim = int32_t(p);
+            hit.u = e.V[lane] * inv;
+            hit.v = e.W[lane] * inv;
+            if constexpr (kBoxes != LeafBoxes::None)
+                seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+        }
+    }
+}
+
 // Tests the triangles of leaf `index` (node `node`) over the ray's range
-// [t0, t1] in it, keeping the closest hit in `hit`.
+// [t0, t1] in it, keeping the closest hit in `hit`. The counting path tests
+// one triangle at a time, so that its counts of tests and culls keep their
+// meaning; the hits-only path tests big leaves in SIMD blocks.
 template <LeafBoxes kBoxes, class Counters>
 inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
                            const float org[3], const float dir[3], float t0, float t1, float tmin,
@@ -122,6 +189,13 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
     const uint32_t n_refs = node.count();
     const uint32_t* list =
         n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
+    if constexpr (std::is_same_v<Counters, CountNothing>) {
+        if (n_refs >= kSimdLeafMin) {
+            intersect_leaf_hits_only<kWideLanes, kBoxes>(tree, node, list, n_refs, sray, org,
+                                                         dir, t0, t1, tmin, hit);
+            return;
+        }
+    }
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
         seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
