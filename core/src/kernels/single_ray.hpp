@@ -124,6 +124,11 @@ struct CountNothing {
 // trees with big leaves (intersect_cost 0.3) trace random rays 10-19 %
 // faster (docs/architecture.md has the figures).
 constexpr uint32_t kSimdLeafMin = 8;
+// Even where no leaf takes the blocks, their code in the traversal loop cost
+// the default kd trees (3 references per non-empty leaf) 1-4 % of their
+// speed; so only trees whose leaves are big on average get the
+// instantiation with blocks (trace_single_rays).
+constexpr float kSimdLeafMean = 6.0f;
 
 // The hits-only path's leaf: the edge functions of up to `L` triangles at
 // a time in SIMD (leaf_simd.hpp), then, for the lanes that pass, in leaf
@@ -182,14 +187,15 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
 // [t0, t1] in it, keeping the closest hit in `hit`. The counting path tests
 // one triangle at a time, so that its counts of tests and culls keep their
 // meaning; the hits-only path tests big leaves in SIMD blocks.
-template <LeafBoxes kBoxes, class Counters>
+template <LeafBoxes kBoxes, bool kSimdLeaves, class Counters>
 inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
                            const float org[3], const float dir[3], float t0, float t1, float tmin,
                            Mailbox& mailbox, Closest& hit, Counters& count) {
     const uint32_t n_refs = node.count();
     const uint32_t* list =
         n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
-    if constexpr (std::is_same_v<Counters, CountNothing>) {
+    if constexpr (kSimdLeaves) {
+        static_assert(std::is_same_v<Counters, CountNothing>, "the counting path tests one by one");
         if (n_refs >= kSimdLeafMin) {
             intersect_leaf_hits_only<kWideLanes, kBoxes>(tree, node, list, n_refs, sray, org,
                                                          dir, t0, t1, tmin, hit);
@@ -249,7 +255,7 @@ inline bool pop_cell(const StackEntry* stack, int& top, float hit_t, uint32_t& i
 // for trees without general nodes (TreeView::has_general): every interior
 // node is then a kd node, and the general node's plane arithmetic and its
 // branch drop out of the hot loop.
-template <LeafBoxes kBoxes, bool kGeneral, class Counters>
+template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, class Counters>
 void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                Closest& hit, Counters& count) {
     hit.t = tmax;
@@ -357,7 +363,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
         }
         // Empty leaves (most leaves of a kd tree) have nothing to test.
         if (node.count() != 0)
-            intersect_leaf<kBoxes>(tree, node, index, sray, org, dir, t0, t1, tmin, mailbox, hit,
+            intersect_leaf<kBoxes, kSimdLeaves>(tree, node, index, sray, org, dir, t0, t1, tmin, mailbox, hit,
                                    count);
         // Early exit: pop_cell skips every cell that starts beyond the
         // closest hit. (Not `hit.t <= t1` here: with widened crossings, and
@@ -367,8 +373,9 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     }
 }
 
-// The ray loop of one traversal kind (kGeneral, see trace_one).
-template <LeafBoxes kBoxes, bool kGeneral, class Counters>
+// The ray loop of one traversal kind (kGeneral, kSimdLeaves: see trace_one
+// and intersect_leaf).
+template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, class Counters>
 void trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits, size_t begin,
                 size_t end) {
     const double scale = view.scale, inv_scale = 1.0 / view.scale;
@@ -380,13 +387,14 @@ void trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits
         const float tmin = rays.tmin[i * rays.tmin_stride];
         const float tmax = rays.tmax[i * rays.tmax_stride];
         if (scale == 1.0) {
-            trace_one<kBoxes, kGeneral>(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin,
-                                        tmax, c, count);
+            trace_one<kBoxes, kGeneral, kSimdLeaves>(view, Vec3(o[0], o[1], o[2]),
+                                                     Vec3(d[0], d[1], d[2]), tmin, tmax, c, count);
         } else {
             // Into the tree's scaled space: o and the range scale, d does not.
             const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
-            trace_one<kBoxes, kGeneral>(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale),
-                                        float(tmax * scale), c, count);
+            trace_one<kBoxes, kGeneral, kSimdLeaves>(view, so, Vec3(d[0], d[1], d[2]),
+                                                     float(tmin * scale), float(tmax * scale), c,
+                                                     count);
             c.t = float(c.t * inv_scale);
             if (!(c.t < tmax)) c.prim = -1;  // tmax * scale rounded up (or overflowed)
         }
@@ -400,14 +408,22 @@ void trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits
 }
 
 // Traces rays [begin, end) one by one (see kernel_set.hpp), with the kd-only
-// traversal when the tree has no general node.
+// traversal when the tree has no general node, and on the hits-only path
+// with SIMD leaf blocks when its leaves are big (kSimdLeafMean).
 template <LeafBoxes kBoxes, class Counters>
 void trace_single_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
                        size_t begin, size_t end) {
-    if (view.has_general)
-        trace_rays<kBoxes, true, Counters>(view, rays, hits, begin, end);
-    else
-        trace_rays<kBoxes, false, Counters>(view, rays, hits, begin, end);
+    constexpr bool kHitsOnly = std::is_same_v<Counters, CountNothing>;
+    if (kHitsOnly && view.mean_leaf_refs >= kSimdLeafMean) {
+        if (view.has_general)
+            trace_rays<kBoxes, true, kHitsOnly, Counters>(view, rays, hits, begin, end);
+        else
+            trace_rays<kBoxes, false, kHitsOnly, Counters>(view, rays, hits, begin, end);
+    } else if (view.has_general) {
+        trace_rays<kBoxes, true, false, Counters>(view, rays, hits, begin, end);
+    } else {
+        trace_rays<kBoxes, false, false, Counters>(view, rays, hits, begin, end);
+    }
 }
 
 }  // namespace

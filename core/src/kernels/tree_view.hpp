@@ -26,6 +26,9 @@ struct TreeView {
     LeafBoxes leaf_boxes;
     // Any general node? Trees without (kd) take the kd-only traversal.
     bool has_general;
+    // References per non-empty leaf: trees of big leaves take SIMD leaf
+    // blocks on the hits-only path (single_ray.hpp, kSimdLeafMean).
+    float mean_leaf_refs;
 };
 
 inline TreeView make_tree_view(const Tree& tree) {
@@ -44,7 +47,9 @@ inline TreeView make_tree_view(const Tree& tree) {
                     2.0f * scene_scale,
                     tree.scale,
                     tree.options.leaf_boxes,
-                    !tree.planes.empty()};
+                    !tree.planes.empty(),
+                    float(double(tree.refs.size()) /
+                          double(std::max<uint64_t>(1, tree.stats.leaves - tree.stats.empty_leaves)))};
 }
 
 }  // namespace bsp
