@@ -1,4 +1,4 @@
-# Shared setup of run_all.sh and demo_in_blender.sh (source it; bash).
+# Shared setup of run_all.sh, demo_in_blender.sh and time_button.sh (source it; bash).
 #
 # Needs REPO (the repository root) and PY (the project's Python 3.11, which
 # can build core/) set. Defines:
@@ -47,4 +47,15 @@ install_deps() {
     rm -rf "$DEPS"
     "$PY" -m pip install --quiet --no-deps --target "$DEPS" \
         "$WHEELS"/bsplab-*.whl "$WHEELS"/embreex-*.whl
+}
+
+run_script_on_bpy42() {  # SCRIPT [ARGS...]: the demo's and time_button's set-up, then SCRIPT
+    check_python
+    ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
+    build_extension || die "addon/build_extension.py failed"
+    install_deps || die "could not install the wheels into $DEPS"
+    local script=$1
+    shift
+    PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
+        "$REPO/.venv-bpy42/bin/python" "$script" "$@"
 }

@@ -20,11 +20,5 @@ if [ $# -gt 0 ] && [ "$1" != "--" ]; then PY="$1"; shift; fi
 [ $# -gt 0 ] || set -- --out out/blender_demo.png
 
 . "$REPO/blender_tests/blender_env.sh"
-check_python
-ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
-build_extension || die "addon/build_extension.py failed"
-install_deps || die "could not install the wheels into $DEPS"
-
 mkdir -p out
-PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
-    "$REPO/.venv-bpy42/bin/python" addon/demo_headless.py "$@"
+run_script_on_bpy42 addon/demo_headless.py "$@"

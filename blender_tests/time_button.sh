@@ -14,11 +14,4 @@ if [ $# -gt 0 ] && [ "$1" != "--" ]; then PY="$1"; shift; fi
 [ "${1:-}" = "--" ] && shift
 
 . "$REPO/blender_tests/blender_env.sh"
-check_python
-ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
-build_extension || die "addon/build_extension.py failed"
-install_deps || die "could not install the wheels into $DEPS"
-
-
-PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
-    "$REPO/.venv-bpy42/bin/python" blender_tests/time_button.py "$@"
+run_script_on_bpy42 blender_tests/time_button.py "$@"
