@@ -23,7 +23,6 @@ struct TreeView {
     float two_scene_scale;
     // Rays and distances go into the tree's scaled space and back.
     double scale;
-    LeafBoxes leaf_boxes;
     // Any general node? Trees without (kd) take the kd-only traversal.
     bool has_general;
     // References per non-empty leaf: trees of big leaves take SIMD leaf
@@ -46,7 +45,6 @@ inline TreeView make_tree_view(const Tree& tree) {
                     tree.options.leaf_boxes != LeafBoxes::Clipped,
                     2.0f * scene_scale,
                     tree.scale,
-                    tree.options.leaf_boxes,
                     !tree.planes.empty(),
                     float(double(tree.refs.size()) /
                           double(std::max<uint64_t>(1, tree.stats.leaves - tree.stats.empty_leaves)))};
