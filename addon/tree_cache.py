@@ -62,19 +62,38 @@ def tree_key(triangles, method, options):
     return TreeKey(geometry_digest(triangles), method, kept)
 
 
+class _Slot:
+    """One value under the key it was made for (the cache's lock held)."""
+
+    def __init__(self):
+        self.key = self.value = None
+
+    def get(self, key):
+        """The value if it was made for `key`; else None, and the value is
+        forgotten (the caller is about to make another)."""
+        if self.key == key:
+            return self.value
+        self.key = self.value = None
+        return None
+
+    def keep(self, key, value):
+        self.key, self.value = key, value
+
+
 class TreeCache:
-    """Holds one tree and one Embree scene, each under the key it was made for.
+    """Holds one tree under its TreeKey and one Embree scene under the
+    geometry digest of its triangles.
 
     `generation()` is read on the main thread when a job is made; a job
-    stores what it made only if no `clear()` happened since (a file loaded
+    keeps what it made only if no `clear()` happened since (a file loaded
     while it ran), so a cleared cache stays clear.
     """
 
     def __init__(self):
         self._lock = threading.Lock()
         self._generation = 0
-        self._tree_key = self._tree = None
-        self._embree_key = self._embree = None
+        self._tree = _Slot()
+        self._embree = _Slot()
 
     def generation(self):
         with self._lock:
@@ -82,40 +101,35 @@ class TreeCache:
 
     def tree(self, key):
         """The kept tree if it was built for `key`; else None, and the kept
-        tree is forgotten (the caller is about to build another)."""
+        tree is forgotten, so that two trees are never held together."""
         with self._lock:
-            if self._tree_key == key:
-                return self._tree
-            self._tree_key = self._tree = None
-            return None
+            return self._tree.get(key)
 
     def keep_tree(self, key, tree, generation):
-        with self._lock:
-            if generation == self._generation:
-                self._tree_key, self._tree = key, tree
+        self._keep(self._tree, key, tree, generation)
 
     def embree(self, geometry):
         """The kept Embree scene if it holds the triangles of digest
         `geometry`; else None, and the kept one is forgotten."""
         with self._lock:
-            if self._embree_key == geometry:
-                return self._embree
-            self._embree_key = self._embree = None
-            return None
+            return self._embree.get(geometry)
 
     def keep_embree(self, geometry, tracer, generation):
+        self._keep(self._embree, geometry, tracer, generation)
+
+    def _keep(self, slot, key, value, generation):
         with self._lock:
             if generation == self._generation:
-                self._embree_key, self._embree = geometry, tracer
+                slot.keep(key, value)
 
     def clear(self):
-        """Forget everything, and what the jobs running now would store."""
+        """Forget everything, and what the jobs running now would keep."""
         with self._lock:
             self._generation += 1
-            self._tree_key = self._tree = None
-            self._embree_key = self._embree = None
+            self._tree = _Slot()
+            self._embree = _Slot()
 
     def __len__(self):
-        """How many things are kept (0, 1 or 2): for tests and the panel."""
+        """How many things are kept (0, 1 or 2): for the tests."""
         with self._lock:
-            return (self._tree is not None) + (self._embree is not None)
+            return (self._tree.value is not None) + (self._embree.value is not None)
