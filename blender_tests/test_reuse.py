@@ -121,3 +121,16 @@ def test_loading_a_file_forgets_the_tree(addon, core, test_scene):
     test_scene = dict(utils.build_test_scene(utils.reset_file()))
     assert len(cache) == 0
     assert press(bpy.context.scene) is False
+
+
+def test_unregister_forgets_the_tree(addon, core, test_scene):
+    assert press(test_scene["scene"]) is False
+    cache = addon.operators.kept_tree_cache()
+    assert len(cache) == 1
+    addon.unregister()
+    try:
+        assert len(cache) == 0
+        assert addon.operators.forget_kept_tree not in bpy.app.handlers.load_pre
+    finally:
+        addon.register()
+    assert addon.operators.forget_kept_tree in bpy.app.handlers.load_pre
