@@ -134,3 +134,20 @@ def test_unregister_forgets_the_tree(addon, core, test_scene):
     finally:
         addon.register()
     assert addon.operators.forget_kept_tree in bpy.app.handlers.load_pre
+
+
+@pytest.mark.parametrize("build, tree, embree", [
+    ({"reused": True, "fingerprint_seconds": 0.012}, "reused", "reused"),
+    ({"reused": False, "fingerprint_seconds": 0.012}, "new", "new"),
+    ({}, "-", None),  # statistics saved before the add-on kept trees
+])
+def test_stats_rows_say_whether_the_tree_was_reused(addon, build, tree, embree):
+    stats = {"build": dict(build, build_seconds=1.5),
+             "embree": {"available": True, "bsplab_seconds": 0.02, "embree_seconds": 0.01,
+                        "time_ratio": 2.0, "compare": {},
+                        **({"embree_reused": embree == "reused"} if embree else {})}}
+    rows = dict(row for _, section in addon.stats.sections(stats) for row in section)
+    assert rows["Tree"] == tree
+    assert rows["Build Time"] == "1.50 s"
+    assert rows["Fingerprint"] == ("12.0 ms" if build else "-")
+    assert rows.get("Embree Scene") == embree
