@@ -21,7 +21,7 @@ bl_info = {
 if "bpy" in locals():
     import importlib
     import sys as _sys
-    for _name in ("backend", "extract", "camera", "preview", "stats", "jobs", "sweep",
+    for _name in ("backend", "extract", "camera", "preview", "stats", "tree_cache", "jobs", "sweep",
                   "properties", "operators", "ui"):
         _module = _sys.modules.get("{}.{}".format(__name__, _name))
         if _module is not None:
@@ -50,6 +50,7 @@ def register():
         unregister()
     _register_classes()
     properties.register_props()
+    operators.add_handlers()
     _registered = True
 
 
@@ -58,6 +59,7 @@ def unregister():
     if not _registered:
         return
     operators.cancel_active_job()
+    operators.remove_handlers()  # and forget the kept tree
     properties.unregister_props()
     _unregister_classes()
     _registered = False

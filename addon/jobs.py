@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import backend
+from . import backend, tree_cache
 
 
 class UserError(Exception):
@@ -96,8 +96,11 @@ def foreign_embree_library():
     return backend.import_core().oracle.foreign_embree_library()
 
 
-def compare_with_embree(core, tree, cam, inp):
-    """Trace the camera rays with the tree and with Embree; compare the hits."""
+def compare_with_embree(core, tree, cam, inp, embree_scene=None):
+    """Trace the camera rays with the tree and with Embree; compare the hits.
+
+    `embree_scene(triangles)` gives the Embree tracer and whether it was
+    re-used (Job's, from its cache); by default a new one is built."""
     oracle = core.oracle
     try:
         import embreex  # noqa: F401  (the oracle imports it when tracing)
@@ -116,7 +119,10 @@ def compare_with_embree(core, tree, cam, inp):
     # kernels, not the core counts.
     ours = tree.intersect(origins, directions, threads=1, cull=inp.cull, counters=False)
     bsplab_seconds = time.perf_counter() - start
-    tracer = oracle.EmbreeTracer(tree.triangles)
+    if embree_scene is None:
+        tracer, reused = oracle.EmbreeTracer(tree.triangles), False
+    else:
+        tracer, reused = embree_scene(tree.triangles)
     start = time.perf_counter()
     theirs = tracer.intersect(origins, directions)
     embree_seconds = time.perf_counter() - start
@@ -126,7 +132,9 @@ def compare_with_embree(core, tree, cam, inp):
         "available": True,
         "bsplab_seconds": bsplab_seconds,
         "embree_seconds": embree_seconds,
+        # When re-used: the build time of the press that built it.
         "embree_build_seconds": getattr(tracer, "build_seconds", None),
+        "embree_reused": reused,
         # How many times longer the tree takes than Embree for the same rays.
         "time_ratio": bsplab_seconds / embree_seconds if embree_seconds > 0 else None,
         # Only the counts: the per-ray index arrays are of no use in the panel.
@@ -148,25 +156,66 @@ def plain(value):
 
 
 class Job(WorkerJob):
-    """Build & Render: build the tree, render the camera's view, optionally
-    compare the camera rays' hits with Embree's."""
+    """Build & Render: build the tree (or re-use the cache's), render the
+    camera's view, optionally compare the camera rays' hits with Embree's.
+
+    With a `cache` (a tree_cache.TreeCache; the add-on passes its one), the
+    tree of the previous press is re-used while the triangles, the method and
+    the options that change the tree are the same, and the tree built here is
+    kept for the next press. Without one, every job builds.
+    """
 
     title = "Building & Rendering"
 
-    def __init__(self, core, inp):
+    def __init__(self, core, inp, cache=None):
         super().__init__(core, inp)
         self.build_progress = core.Progress()
         self.render_progress = core.Progress()
+        self.cache = cache
+        # Read now, on the main thread: a clear() after this (a file loaded
+        # while the job runs) makes the cache refuse what the job would keep.
+        self._generation = cache.generation() if cache is not None else None
+        self._key = None
+        self.reused = False
+        self.fingerprint_seconds = None
 
     def _check_cancelled(self):
         if self.cancelled:
             raise self.core.Cancelled("cancelled")
 
+    def _tree(self):
+        """The cache's tree when it was built for this input, else a new one."""
+        core, inp = self.core, self.input
+        if self.cache is not None:
+            start = time.perf_counter()
+            self._key = tree_cache.tree_key(inp.triangles, inp.method, inp.options)
+            self.fingerprint_seconds = time.perf_counter() - start
+            tree = self.cache.tree(self._key)
+            if tree is not None:
+                self.reused = True
+                return tree
+        tree = core.build(inp.triangles, method=inp.method,
+                          progress=self.build_progress, **inp.options)
+        if self.cache is not None:
+            # Kept before rendering: a cancelled render leaves a good tree.
+            self.cache.keep_tree(self._key, tree, self._generation)
+        return tree
+
+    def _embree_scene(self, triangles):
+        """The Embree tracer of the triangles and whether it was re-used."""
+        geometry = self._key.geometry
+        tracer = self.cache.embree(geometry)
+        if tracer is not None:
+            return tracer, True
+        tracer = self.core.oracle.EmbreeTracer(triangles)
+        self.cache.keep_embree(geometry, tracer, self._generation)
+        return tracer, False
+
     def _compute(self):
         core, inp = self.core, self.input
         cam = make_camera(core, inp.camera)
-        tree = core.build(inp.triangles, method=inp.method,
-                          progress=self.build_progress, **inp.options)
+        self._check_cancelled()
+        tree = self._tree()
         self._check_cancelled()
         image, render_stats = core.render(tree, cam, inp.camera.width, inp.camera.height,
                                           mode=inp.mode, threads=inp.threads,
@@ -182,11 +231,15 @@ class Job(WorkerJob):
         stats = {
             "scene": {"triangles": len(inp.triangles), "objects": inp.objects,
                       "instances": inp.instances},
-            "build": dict(tree.stats),
+            # A re-used tree's own statistics, build_seconds included: the
+            # time of the press that built it.
+            "build": dict(tree.stats, reused=self.reused,
+                          fingerprint_seconds=self.fingerprint_seconds),
             "render": render_stats,
         }
         if inp.compare_with_embree:
-            stats["embree"] = compare_with_embree(core, tree, cam, inp)
+            embree_scene = self._embree_scene if self.cache is not None else None
+            stats["embree"] = compare_with_embree(core, tree, cam, inp, embree_scene)
             self._check_cancelled()
         return {"image": np.asarray(image, dtype=np.float32), "stats": plain(stats)}
 
@@ -196,6 +249,8 @@ class Job(WorkerJob):
         self.render_progress.cancel()
 
     def fraction(self):
+        if self.reused:
+            return self.render_progress.value
         # Building usually dominates; weigh it accordingly.
         return min(1.0, 0.6 * self.build_progress.value + 0.4 * self.render_progress.value)
 

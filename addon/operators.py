@@ -13,7 +13,7 @@ import traceback
 
 import bpy
 
-from . import backend, camera, extract, preview, sweep
+from . import backend, camera, extract, preview, sweep, tree_cache
 # The worker side (bpy-free, tested without Blender); re-exported because the
 # operators and the Blender tests name them here.
 from .jobs import (Job, JobInput, UserError, check_result, error_message,  # noqa: F401
@@ -23,9 +23,36 @@ from .jobs import (Job, JobInput, UserError, check_result, error_message,  # noq
 # The one job in flight, if any; the panel reads its progress.
 _active_job = None
 
+# The last Build & Render's tree, re-used while the scene's triangles and the
+# build options are unchanged (see tree_cache.py).
+_tree_cache = tree_cache.TreeCache()
+
 
 def active_job():
     return _active_job
+
+
+def kept_tree_cache():
+    """The add-on's TreeCache (the tests look into it)."""
+    return _tree_cache
+
+
+@bpy.app.handlers.persistent
+def forget_kept_tree(*_args):
+    """load_pre handler (and unregister): a tree of the previous file must
+    never be re-used for the next, nor hold its memory."""
+    _tree_cache.clear()
+
+
+def add_handlers():
+    if forget_kept_tree not in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.append(forget_kept_tree)
+
+
+def remove_handlers():
+    if forget_kept_tree in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(forget_kept_tree)
+    forget_kept_tree()
 
 
 # -----------------------------------------------------------------------------
@@ -273,7 +300,7 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
     bl_label = "Build & Render"
 
     def make_job(self, context, core):
-        return Job(core, read_scene(context, core))
+        return Job(core, read_scene(context, core), cache=_tree_cache)
 
     def apply(self, context, scene, job):
         try:
@@ -282,9 +309,12 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
             return self._fail(str(ex))
         apply_result(scene, job.result)
         stats = job.result["stats"]
-        self.report({'INFO'}, "BSP Lab: {} triangles, {} nodes, built in {:.3f} s, rendered in {:.3f} s"
-                    .format(stats["scene"]["triangles"], stats["build"].get("nodes", "?"),
-                            stats["build"].get("build_seconds", 0.0),
+        build = stats["build"]
+        built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")
+                 else "built in {:.3f} s")
+        self.report({'INFO'}, ("BSP Lab: {} triangles, {} nodes, " + built + ", rendered in {:.3f} s")
+                    .format(stats["scene"]["triangles"], build.get("nodes", "?"),
+                            build.get("build_seconds", 0.0),
                             stats["render"].get("seconds", 0.0)))
         return {'FINISHED'}
 

@@ -66,6 +66,15 @@ def _agreement(embree):
     return None
 
 
+def _tree_origin(build):
+    """"reused" when the press re-used the previous press's tree (whose
+    statistics, build time included, the rows then show), "new" when it
+    built one; "-" for statistics from before the cache."""
+    if "reused" not in build:
+        return "-"
+    return "reused" if build["reused"] else "new"
+
+
 def embree_rows(embree):
     if not embree:
         return []
@@ -76,6 +85,8 @@ def embree_rows(embree):
         ("BSP Lab Trace", _seconds(embree.get("bsplab_seconds"))),
         ("Time Ratio", "{}x Embree".format(_number(embree.get("time_ratio")))),
     ]
+    if "embree_reused" in embree:
+        rows.append(("Embree Scene", "reused" if embree["embree_reused"] else "new"))
     compare = embree.get("compare") or {}
     agreement = _agreement(embree)
     if agreement is not None:
@@ -108,7 +119,9 @@ def sections(stats):
         ]),
         ("Build", [
             ("Method", str(build.get("method", "-"))),
+            ("Tree", _tree_origin(build)),
             ("Build Time", _seconds(build.get("build_seconds"))),
+            ("Fingerprint", _seconds(build.get("fingerprint_seconds"))),
             ("Nodes", _count(build.get("nodes"))),
             ("Leaves", _count(build.get("leaves"))),
             ("Empty Leaves", _count(build.get("empty_leaves"))),

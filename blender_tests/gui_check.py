@@ -9,7 +9,9 @@ BSPLAB_GUI_CHECK=1. Exits 0 when every check passed. Registers the
 add-on from the source tree, adds a heavy mesh so the job runs for a few
 seconds, presses Build & Render through INVOKE_DEFAULT (the modal path with
 the worker thread and the timer), screenshots the window while it runs,
-then starts a second job and cancels it with a real Esc key press. Writes
+presses it again with only the shading mode changed (the kept tree is
+re-used: a quick render), then starts a job that must build (a build
+option changed) and cancels it with a real Esc key press. Writes
 OUT_DIR/gui_check.json and screenshots, then quits Blender.
 """
 
@@ -71,7 +73,7 @@ def finish():
     report["ok"] = bool(
         report.get("image_size") and report.get("image_editor_shows_preview")
         and report.get("stats_unchanged_after_cancel") and not report.get("is_running_after")
-        and "Esc pressed" in report["events"]
+        and "Esc pressed" in report["events"] and report.get("reused_after_shading_change")
         and report.get("sweep_trees", 0) > 0 and report.get("sweep_plot_shown"))
     (OUT / "gui_check.json").write_text(json.dumps(report, indent=1))
     sys.stdout.flush()
@@ -143,9 +145,28 @@ def tick():
         return 1.5  # let the editors redraw before the screenshot
     if phase == "done":
         screenshot("done")
+        state["phase"] = "reuse"
+        return 0.5
+    if phase == "reuse":
+        # Only the shading changes: the modal path renders with the kept tree.
+        bpy.context.scene.bsplab.render_mode = "normal"
+        result = invoke()
+        report["events"].append("invoke after a shading change -> {}".format(sorted(result)))
+        state.update(phase="reusing", t0=time.time())
+        return 0.2
+    if phase == "reusing":
+        if job is not None:
+            return 0.2
+        stats = bpy.context.scene.bsplab.stats
+        report["reused_after_shading_change"] = (stats["build"].get("reused") is True
+                                                 and stats["render"]["mode"] == "normal")
+        report["reuse_seconds"] = round(time.time() - state["t0"], 2)
+        state["stats_before_cancel"] = bpy.context.scene.bsplab.stats_json
         state["phase"] = "cancel"
         return 0.5
     if phase == "cancel":
+        # A build option changed: this job must build, long enough for Esc.
+        bpy.context.scene.bsplab.leaf_size = 2
         result = invoke()
         report["events"].append("second invoke -> {}".format(sorted(result)))
         state.update(phase="cancelling", t0=time.time(), escaped=False)

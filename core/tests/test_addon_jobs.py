@@ -194,3 +194,246 @@ def test_the_addon_reads_the_scene_with_the_core_packages_modules():
                                    resolution_percentage=50)
     for percent in (1, 25, 100):
         assert addon_camera.preview_size(render, percent) == camera.preview_size(render, percent)
+
+
+# -----------------------------------------------------------------------------
+# Re-using the tree of the previous press (addon/tree_cache.py)
+
+tree_cache = _addon_module("tree_cache")
+
+# What the add-on passes: every option of the method, threads included.
+KD_OPTIONS = {"threads": 2, "leaf_size": 1, "max_depth": 0, "leaf_boxes": "triangle"}
+
+
+def _run_cached(cache, inp):
+    job = jobs.Job(bsplab, inp, cache=cache)
+    job.start()
+    job.join(60.0)
+    assert not job.is_alive(), "the job did not end within 60 s"
+    assert job.error is None, job.error
+    return job
+
+
+@pytest.fixture
+def scene():
+    return scenes.generate("fan"), scenes.default_camera("fan")
+
+
+def test_same_triangles_and_options_reuse_the_tree(scene):
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    first = _run_cached(cache, _input(tris, cam, options=KD_OPTIONS, compare_with_embree=False))
+    # A fresh copy of the same triangles, as the next press extracts them.
+    second = _run_cached(cache, _input(tris.copy(), cam, options=dict(KD_OPTIONS),
+                                       compare_with_embree=False))
+    assert (first.reused, second.reused) == (False, True)
+    one, two = first.result["stats"]["build"], second.result["stats"]["build"]
+    assert (one["reused"], two["reused"]) == (False, True)
+    # The re-used tree's own statistics: its build time is the first press's.
+    assert {k: v for k, v in two.items() if k not in ("reused", "fingerprint_seconds")} == \
+        {k: v for k, v in one.items() if k not in ("reused", "fingerprint_seconds")}
+    assert two["fingerprint_seconds"] > 0
+    assert second.build_progress.value == 0.0  # no build ran
+    assert second.fraction() == pytest.approx(1.0)
+    assert np.array_equal(first.result["image"], second.result["image"])
+    assert len(cache) == 1
+
+
+def _moved(cam):
+    """The camera half a unit to its right."""
+    matrix = np.array(cam.matrix_world, dtype=np.float64)
+    matrix[:3, 3] += 0.5 * matrix[:3, 0]
+    return dataclasses.replace(cam, matrix_world=matrix)
+
+
+# (what changes between two presses, whether the picture changes with it)
+RENDER_ONLY_CHANGES = [
+    ({"mode": "depth"}, True),
+    ({"width": 24, "height": 16}, True),
+    ({"camera": _moved}, True),
+    ({"threads": 1}, False),
+    ({"cull": True}, False),
+    ({"count_steps": False}, False),
+    ({"options": dict(KD_OPTIONS, threads=1)}, False),
+    ({"options": dict(KD_OPTIONS, memory_limit_mb=2048.0)}, False),
+]
+
+
+@pytest.mark.parametrize("change, new_picture", RENDER_ONLY_CHANGES,
+                         ids=[next(iter(c)) for c, _ in RENDER_ONLY_CHANGES])
+def test_what_does_not_change_the_tree_reuses_it_and_renders_anew(scene, change,
+                                                                   new_picture):
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    base = dict(options=KD_OPTIONS, compare_with_embree=False)
+    first = _run_cached(cache, _input(tris, cam, **base))
+    change = dict(change)
+    second_cam = change.pop("camera")(cam) if "camera" in change else cam
+    second = _run_cached(cache, _input(tris, second_cam, **{**base, **change}))
+    assert second.reused and second.result["stats"]["build"]["reused"] is True
+    # Rendered anew with the new settings: the very image a fresh build gives.
+    fresh = _run(second.input)
+    assert fresh.error is None, fresh.error
+    assert np.array_equal(second.result["image"], fresh.result["image"])
+    before, after = first.result["image"], second.result["image"]
+    same = before.shape == after.shape and np.array_equal(before, after)
+    assert same is not new_picture
+
+
+def _one_vertex_moved(tris):
+    moved = tris.copy()
+    moved[7, 1, 2] += np.float32(0.25)
+    return moved
+
+
+# (what changes between two presses): each builds a new tree.
+TREE_CHANGES = [
+    {"triangles": _one_vertex_moved},
+    {"triangles": lambda tris: tris[:-1].copy()},  # a triangle fewer
+    {"method": "bsp_wn+kd", "options": {"threads": 2, "k": 4, "seed": 1}},
+    {"options": dict(KD_OPTIONS, leaf_size=4)},
+    {"options": dict(KD_OPTIONS, leaf_boxes="clipped")},
+]
+
+
+@pytest.mark.parametrize("change", TREE_CHANGES,
+                         ids=["vertex", "triangle_count", "method", "leaf_size", "leaf_boxes"])
+def test_what_changes_the_tree_rebuilds_it(scene, change):
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    base = dict(options=KD_OPTIONS, compare_with_embree=False)
+    _run_cached(cache, _input(tris, cam, **base))
+    change = dict(change)
+    second_tris = change.pop("triangles")(tris) if "triangles" in change else tris
+    second = _run_cached(cache, _input(second_tris, cam, **{**base, **change}))
+    assert not second.reused and second.result["stats"]["build"]["reused"] is False
+    assert second.build_progress.value == 1.0
+    # The new tree is the one kept now: a third press re-uses it.
+    third = _run_cached(cache, second.input)
+    assert third.reused
+    assert third.result["stats"]["build"]["nodes"] == second.result["stats"]["build"]["nodes"]
+
+
+def test_every_option_but_threads_and_memory_limit_is_in_the_key(scene):
+    """A new build option of the core's registry changes the key unless it is
+    named in NOT_TREE_OPTIONS: no option is forgotten by a list of our own."""
+    tris, _ = scene
+    schema = bsplab.option_schema()
+    defaults = {name: spec["default"] for name, spec in schema.items()}
+    base = tree_cache.tree_key(tris, "kd", defaults)
+    for name, spec in schema.items():
+        if spec["type"] == "enum":
+            other = next(c["name"] for c in spec["choices"] if c["name"] != spec["default"])
+        else:
+            other = spec["default"] + 1
+        changed = tree_cache.tree_key(tris, "kd", dict(defaults, **{name: other}))
+        assert (changed == base) is (name in tree_cache.NOT_TREE_OPTIONS), name
+    assert tree_cache.NOT_TREE_OPTIONS <= set(schema)
+
+
+@pytest.mark.parametrize("method", ["kd", "bsp_cn+kd"])
+def test_threads_and_memory_limit_do_not_change_the_tree(method):
+    """Why NOT_TREE_OPTIONS may leave them out of the key."""
+    tris = scenes.generate("room")
+    one = bsplab.build(tris, method, threads=1)
+    for options in ({"threads": 2}, {"threads": 0}, {"memory_limit_mb": 512.0}):
+        assert bsplab.build(tris, method, **options).node_bytes() == one.node_bytes(), options
+
+
+def test_geometry_digest_sees_every_byte_shape_and_type():
+    tris = scenes.generate("fan")
+    digest = tree_cache.geometry_digest(tris)
+    assert digest == tree_cache.geometry_digest(tris.copy())
+    assert len(digest) == tree_cache.DIGEST_BYTES
+    flipped = tris.copy()
+    flipped.view(np.uint32)[-1, -1, -1] ^= 1  # the lowest bit of the last float
+    assert tree_cache.geometry_digest(flipped) != digest
+    assert tree_cache.geometry_digest(tris.reshape(-1, 9)) != digest
+    assert tree_cache.geometry_digest(tris.astype(np.float64)) != digest
+    # Not C-contiguous (a strided view) is read the same as its copy.
+    assert tree_cache.geometry_digest(tris[::2]) == tree_cache.geometry_digest(tris[::2].copy())
+
+
+def test_a_miss_forgets_the_kept_tree_before_building(scene):
+    """One tree at a time: asking for another key drops the kept one."""
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    first = _run_cached(cache, _input(tris, cam, options=KD_OPTIONS, compare_with_embree=False))
+    key = first._key
+    assert cache.tree(key) is not None and len(cache) == 1
+    other = tree_cache.tree_key(tris, "kd", dict(KD_OPTIONS, leaf_size=2))
+    assert cache.tree(other) is None
+    assert len(cache) == 0 and cache.tree(key) is None
+
+
+def test_cancel_during_a_reused_render_keeps_the_tree(scene):
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    small = _run_cached(cache, _input(tris, cam, options=KD_OPTIONS, compare_with_embree=False))
+    big = jobs.Job(bsplab, _input(tris, cam, width=1600, height=1200, mode="heat_tests",
+                                  threads=1, options=KD_OPTIONS, compare_with_embree=False),
+                   cache=cache)
+
+    def cancel_once_rendering():
+        while big.is_alive() and big.render_progress.value == 0.0:
+            threading.Event().wait(0.001)
+        big.cancel()
+
+    big.start()
+    canceller = threading.Thread(target=cancel_once_rendering)
+    canceller.start()
+    big.join(60.0)
+    canceller.join(60.0)
+    assert not big.is_alive() and big.reused
+    assert isinstance(big.error, bsplab.Cancelled), big.error
+    assert big.result is None and big.render_progress.value < 1.0
+    # Still kept, and the next press re-uses it.
+    assert cache.tree(small._key) is not None
+    again = _run_cached(cache, small.input)
+    assert again.reused and np.array_equal(again.result["image"], small.result["image"])
+
+
+def test_cancel_during_the_build_keeps_nothing(scene):
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    job = jobs.Job(bsplab, _input(tris, cam, options=KD_OPTIONS), cache=cache)
+    job.cancel()
+    job.run()
+    assert isinstance(job.error, bsplab.Cancelled)
+    assert len(cache) == 0
+
+
+def test_clear_forgets_and_refuses_what_running_jobs_would_keep(scene):
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    inp = _input(tris, cam, options=KD_OPTIONS)
+    _run_cached(cache, inp)
+    assert len(cache) == 2  # the tree and the Embree scene (compare_with_embree)
+    cache.clear()  # a file loaded
+    assert len(cache) == 0
+    # A job made before a clear (a file loaded while it ran) keeps nothing.
+    job = jobs.Job(bsplab, inp, cache=cache)
+    cache.clear()
+    job.run()
+    assert job.error is None, job.error
+    assert not job.reused and len(cache) == 0
+    # A job made after it builds and keeps its tree again.
+    assert not _run_cached(cache, inp).reused and len(cache) == 2
+
+
+def test_embree_scene_is_reused_with_the_triangles(scene):
+    pytest.importorskip("embreex")
+    tris, cam = scene
+    cache = tree_cache.TreeCache()
+    runs = [_run_cached(cache, _input(t, cam, method=method, options=options))
+            for t, method, options in [
+                (tris, "kd", KD_OPTIONS),
+                (tris, "kd", dict(KD_OPTIONS, leaf_size=3)),  # a new tree, the same triangles
+                (_one_vertex_moved(tris), "kd", KD_OPTIONS)]]
+    embree = [run.result["stats"]["embree"] for run in runs]
+    assert [e["embree_reused"] for e in embree] == [False, True, False]
+    assert [run.reused for run in runs] == [False, False, False]
+    assert embree[1]["embree_build_seconds"] == embree[0]["embree_build_seconds"]
+    for e in embree:  # the re-used scene still gives Embree's hits
+        c = e["compare"]
+        assert c["agree"] + c["grazing"] + c["at_ends"] + c["degenerate"] == c["rays"], c
