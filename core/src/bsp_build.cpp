@@ -306,7 +306,7 @@ private:
             while (ip < planars.size() && planars[ip] == p) ++np, ++ip;
             while (is < starts.size() && starts[is] == p) ++ns, ++is;
             nr_ -= np + ne;
-            const bool inside = double(p) > clo && double(p) < chi;
+            const bool inside = cp.cuts(double(p));
             // On an axis, triangles lying in the cell's own face (walls,
             // floors) can be cut off into a flat cell, as in the kd builder.
             const bool at_lo = is_ax && np > 0 && double(p) == clo && chi > clo;
@@ -499,7 +499,7 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
     auto try_plane = [&](const Vec3& u, float d) {
         const Vec3d ud(u);
         const CellProjection cp(cell, ud);
-        if (!(double(d) > cp.lo() && double(d) < cp.hi())) return;
+        if (!cp.cuts(double(d))) return;
         int axis;
         const bool is_ax = is_axis(u, axis);
         const bool kd = opt_.kd_nodes && is_ax;

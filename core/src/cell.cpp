@@ -12,6 +12,21 @@ double twice_area(const Vec3d& normal, const Vec3d* p, size_t n) {
     return std::fabs(dot(s, normal));
 }
 
+bool is_axis_direction(const Vec3d& n) { return (n.x != 0) + (n.y != 0) + (n.z != 0) == 1; }
+
+// A point where an edge crosses the axis plane n.x = d, put exactly on it.
+// Interpolated, its coordinate along the axis is off by an ulp of a double;
+// the sweep compares float candidate positions with the cell's extent, and a
+// face an ulp below its plane made that plane a candidate again inside the
+// cell: an empty sliver, taken for the empty bonus, over and over down to
+// the depth limit. Exact, a cell cut by axis planes alone is the very box the
+// kd builder keeps.
+void snap_to_axis_plane(Vec3d& x, const Vec3d& n, double d) {
+    if (n.x != 0) x.x = d / n.x;
+    else if (n.y != 0) x.y = d / n.y;
+    else x.z = d / n.z;
+}
+
 }  // namespace
 
 Cell Cell::from_box(const Box& b) {
@@ -98,6 +113,7 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
     double lo, hi;
     extent(n, lo, hi);
     const double eps = 1e-12 * std::max({std::fabs(lo), std::fabs(hi), hi - lo, 1e-30});
+    const bool on_axis = is_axis_direction(n);
     std::vector<Vec3d> cap;
     std::vector<Vec3d> b, a;
     for (const Face& f : faces_) {
@@ -114,7 +130,8 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
             if (du >= 0) a.push_back(u);
             if (du == 0) cap.push_back(u);
             if ((du < 0 && dv > 0) || (du > 0 && dv < 0)) {
-                const Vec3d x = u + (v - u) * (du / (du - dv));
+                Vec3d x = u + (v - u) * (du / (du - dv));
+                if (on_axis) snap_to_axis_plane(x, n, d);
                 b.push_back(x);
                 a.push_back(x);
                 cap.push_back(x);
@@ -139,17 +156,29 @@ CellProjection::CellProjection(const Cell& cell, const Vec3d& u) : cell_(cell), 
     proj_.resize(pts.size());
     lo_ = INFINITY;
     hi_ = -INFINITY;
+    double magnitude = 0;
     for (size_t i = 0; i < pts.size(); ++i) {
         proj_[i] = dot(u, pts[i]);
         lo_ = std::min(lo_, proj_[i]);
         hi_ = std::max(hi_, proj_[i]);
+        const Vec3d& p = pts[i];
+        magnitude = std::max(magnitude, std::fabs(p.x) + std::fabs(p.y) + std::fabs(p.z));
     }
+    // A general plane's face lies off its plane by the rounding of the
+    // interpolated vertices (about 1e-14 of the coordinates after dozens of
+    // cuts), so the plane that made it could be a candidate inside the cell
+    // again and cut off an empty sliver, for the empty bonus, at every level
+    // down to the depth limit. A margin far below a float's resolution
+    // (1.2e-7) rules that out. Axis faces are exact (split() puts them on
+    // their planes) and need none: a float plane an ulp inside still cuts.
+    slack_ = is_axis_direction(u) ? 0.0 : 1e-9 * magnitude;
     for (const Cell::Face& f : cell.faces()) {
         FaceInfo fi;
         fi.area = f.area;
         const double c = dot(f.normal, u);
         fi.w_below = 1.0 - c;
         fi.w_above = 1.0 + c;
+        fi.faces_up = c > 0;
         fi.lo = INFINITY;
         fi.hi = -INFINITY;
         for (uint32_t i = 0; i < f.count; ++i) {
@@ -169,7 +198,15 @@ void CellProjection::areas_at(double t, double& below, double& above) const {
     for (size_t k = 0; k < faces_.size(); ++k) {
         const FaceInfo& f = faces_[k];
         double b;
-        if (f.hi <= t) {
+        if (f.lo == t && f.hi == t) {
+            // A face lying in the plane (the cell's bottom or top face, t at
+            // an end of the cell): a split there makes a flat cell of that
+            // face and the cap back to back, on the face's own side, as
+            // Cell::split does. Counted below whatever its side, the top
+            // face's flat cell had no area, and cutting off the triangles
+            // lying in it looked free.
+            b = f.faces_up ? 0.0 : f.area;
+        } else if (f.hi <= t) {
             b = f.area;
         } else if (f.lo >= t) {
             b = 0;

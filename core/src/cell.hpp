@@ -63,6 +63,9 @@ public:
     CellProjection(const Cell& cell, const Vec3d& u);
     double lo() const { return lo_; }
     double hi() const { return hi_; }
+    // Whether the plane u.x = t cuts the cell in two: inside its extent by
+    // more than the rounding of the cell's vertices along u (slack_).
+    bool cuts(double t) const { return t > lo_ + slack_ && t < hi_ - slack_; }
     // About how many distinct vertex projections there are (each vertex of a
     // simple polytope lies on three faces); tabulating costs twice that.
     size_t breaks_estimate() const { return proj_.size() / 3 + 1; }
@@ -79,10 +82,12 @@ private:
     struct FaceInfo {
         double area, w_below, w_above, lo, hi;
         uint32_t first, count;
+        bool faces_up;  // its outward normal points along +u
     };
     const Cell& cell_;
     Vec3d u_;
     double lo_ = 0, hi_ = 0;
+    double slack_ = 0;
     std::vector<double> proj_;    // projection of every face point
     std::vector<FaceInfo> faces_;
     std::vector<double> breaks_;  // sorted distinct projections
