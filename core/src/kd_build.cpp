@@ -75,6 +75,25 @@ constexpr uint32_t kParallelAxes = 1u << 16;
 
 enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2 };
 
+// A build task's working memory, reused from node to node so that splitting
+// a node allocates only the children's own lists.
+struct TaskScratch {
+    std::vector<uint8_t> side;            // per triangle: its Side at the current split
+    std::vector<uint32_t> straddling;     // the triangles the current plane cuts
+    EventList new_left[3], new_right[3];  // their clipped events, per axis
+    EventList part[3];                    // per axis: an event list split in two
+    Charge part_charge;                   // the part lists' bytes in the memory budget
+
+    // Room for splitting a list of n events along axis k. The parts grow to
+    // the task's largest (first) node and stay: charged once, as they grow.
+    void reserve_part(int k, size_t n, TaskCredit& credit, int depth) {
+        if (part[k].size() >= n) return;
+        part_charge.absorb(Charge(credit, (n - part[k].size()) * sizeof(Event), depth,
+                                  "a build task's event split lists"));
+        part[k].resize(n);
+    }
+};
+
 class KdBuilder {
 public:
     KdBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
@@ -89,8 +108,9 @@ public:
         TaskCredit credit(memory_);
         ev.charge.move_to(credit);
         const Charge side_charge(credit, tris_.size(), depth, "a build task's triangle marks");
-        std::vector<uint8_t> side(tris_.size());
-        return build_node(std::move(ev), box, depth, budget, side, credit);
+        TaskScratch scratch;
+        scratch.side.resize(tris_.size());
+        return build_node(std::move(ev), box, depth, budget, scratch, credit);
     }
 
 private:
@@ -160,34 +180,46 @@ private:
         return best;
     }
 
-    // Marks every triangle of the node with the side(s) of `s` it lies on.
-    void classify(const NodeEvents& ev, const Split& s, std::vector<uint8_t>& side) const {
+    // Marks every triangle of the node with the side(s) of `s` it lies on,
+    // and lists the triangles the plane cuts (in the order of their starts
+    // along the split axis). Every triangle starts as "both", set from the
+    // x events, before the split axis's events narrow it down: a start
+    // right of the plane, an end left of it, or a planar event. The reset
+    // pass cannot be folded into the second: a rounded, clipped box can be
+    // inverted (its end before its start), and then the later event wins.
+    void classify(const NodeEvents& ev, const Split& s, TaskScratch& scratch) const {
+        std::vector<uint8_t>& side = scratch.side;
         for (const Event& e : ev.axis[0])
             if (e.type() != kEnd) side[e.tri()] = kBoth;
+        std::vector<uint32_t>& straddling = scratch.straddling;
+        straddling.clear();
         for (const Event& e : ev.axis[s.axis]) {
             const uint32_t t = e.tri();
-            if (e.type() == kEnd && e.pos <= s.pos) {
-                side[t] = kLeftOnly;
-            } else if (e.type() == kStart && e.pos >= s.pos) {
-                side[t] = kRightOnly;
-            } else if (e.type() == kPlanar) {
-                bool left = e.pos < s.pos || (e.pos == s.pos && s.planar_left);
+            if (e.type() == kEnd) {
+                if (e.pos <= s.pos) side[t] = kLeftOnly;
+            } else if (e.type() == kStart) {
+                if (e.pos >= s.pos) side[t] = kRightOnly;
+                else straddling.push_back(t);  // unless its end turns out left
+            } else {
+                const bool left = e.pos < s.pos || (e.pos == s.pos && s.planar_left);
                 side[t] = left ? kLeftOnly : kRightOnly;
             }
         }
+        straddling.erase(std::remove_if(straddling.begin(), straddling.end(),
+                                        [&](uint32_t t) { return side[t] != kBoth; }),
+                         straddling.end());
     }
 
-    // Splits the node's sorted events into the children's sorted events.
-    void split_events(NodeEvents& ev, const Split& s, const Box& lbox, const Box& rbox,
-                      const std::vector<uint8_t>& side, NodeEvents& left, NodeEvents& right) const {
-        std::vector<uint32_t> straddling;
-        for (const Event& e : ev.axis[s.axis])
-            if (e.type() == kStart && side[e.tri()] == kBoth) straddling.push_back(e.tri());
-
-        EventList new_left[3], new_right[3];
-        for (uint32_t t : straddling) {
-            Box parent = lbox;
-            parent.hi[s.axis] = rbox.hi[s.axis];
+    // The clipped events of the straddling triangles on either side, sorted.
+    void clip_straddling(const Split& s, const Box& lbox, const Box& rbox,
+                         TaskScratch& scratch) const {
+        for (int k = 0; k < 3; ++k) {
+            scratch.new_left[k].clear();
+            scratch.new_right[k].clear();
+        }
+        Box parent = lbox;
+        parent.hi[s.axis] = rbox.hi[s.axis];
+        for (uint32_t t : scratch.straddling) {
             Box lb, rb;
             split_clipped_bounds(tris_[t], parent, s.axis, s.pos, lb, rb);
             // The plane cuts the triangle inside the cell, so both halves are
@@ -195,54 +227,80 @@ private:
             // triangle box (conservative) stands in.
             if (lb.empty()) lb = tris_[t].bounds().intersect(lbox);
             if (rb.empty()) rb = tris_[t].bounds().intersect(rbox);
-            add_events(lb, t, new_left);
-            add_events(rb, t, new_right);
-        }
-        left.count = s.n_left;
-        right.count = s.n_right;
-        auto split_axis = [&](int k) {
-            std::sort(new_left[k].begin(), new_left[k].end());
-            std::sort(new_right[k].begin(), new_right[k].end());
-            const EventList& in = ev.axis[k];
-            size_t nl = 0, nr = 0;
-            for (const Event& e : in) {
-                const uint8_t sd = side[e.tri()];
-                nl += sd == kLeftOnly;
-                nr += sd == kRightOnly;
-            }
-            EventList& l = left.axis[k];
-            EventList& r = right.axis[k];
-            l.resize(nl + new_left[k].size());
-            r.resize(nr + new_right[k].size());
-            size_t il = 0, ir = 0;
-            for (const Event& e : in) {
-                const uint8_t sd = side[e.tri()];
-                if (sd == kLeftOnly) l[il++] = e;
-                else if (sd == kRightOnly) r[ir++] = e;
-            }
-            EventList().swap(ev.axis[k]);  // free the parent's list early
-            merge_tail(l, nl, new_left[k]);
-            merge_tail(r, nr, new_right[k]);
-        };
-        if (threads_ > 1 && ev.count > kParallelAxes) {
-            // Big nodes near the root: the three axes split in parallel.
-            auto a1 = std::async(std::launch::async, split_axis, 1);
-            auto a2 = std::async(std::launch::async, split_axis, 2);
-            split_axis(0);
-            a1.get();
-            a2.get();
-        } else {
-            for (int k = 0; k < 3; ++k) split_axis(k);
+            add_events(lb, t, scratch.new_left);
+            add_events(rb, t, scratch.new_right);
         }
     }
 
-    // `out` holds `n` sorted events followed by room for `extra`; merges the
-    // sorted `extra` in from the back, in place.
-    static void merge_tail(EventList& out, size_t n, const EventList& extra) {
-        size_t i = n, j = extra.size(), w = n + extra.size();
-        while (j > 0) {
-            if (i > 0 && extra[j - 1] < out[i - 1]) out[--w] = out[--i];
-            else out[--w] = extra[--j];
+    // Splits the node's sorted events along axis k into the children's
+    // sorted events: one pass sends each event to its side (left ones to the
+    // front of the scratch list, right ones to its back, so no second pass
+    // is needed to count them), then each side is merged with the straddling
+    // triangles' new events into a list of exactly its size.
+    void split_axis(NodeEvents& ev, int k, TaskScratch& scratch, NodeEvents& left,
+                    NodeEvents& right) const {
+        EventList& new_left = scratch.new_left[k];
+        EventList& new_right = scratch.new_right[k];
+        std::sort(new_left.begin(), new_left.end());
+        std::sort(new_right.begin(), new_right.end());
+        const EventList& in = ev.axis[k];
+        EventList& part = scratch.part[k];
+        const uint8_t* side = scratch.side.data();
+        Event* front = part.data();
+        Event* back = part.data() + in.size();  // right events, written downwards
+        for (const Event& e : in) {
+            // Branch-free: both slots are written, one pointer moves. The
+            // slot below `back` is free (front < back while events remain),
+            // so a write there that does not count is harmless.
+            const uint8_t sd = side[e.tri()];
+            *front = e;
+            back[-1] = e;
+            front += sd == kLeftOnly;
+            back -= sd == kRightOnly;
+        }
+        // [back, end) holds the right events in reverse order.
+        const size_t nl = size_t(front - part.data());
+        const Event* rbegin = back;
+        const Event* rend = part.data() + in.size();
+        EventList().swap(ev.axis[k]);  // free the parent's list early
+        merge_into(left.axis[k], part.data(), part.data() + nl, new_left, false);
+        merge_into(right.axis[k], rbegin, rend, new_right, true);
+    }
+
+    // out = the sorted merge of [b, e) (reversed if `reversed`) and `extra`;
+    // an extra event goes after an equal one of the node's own.
+    static void merge_into(EventList& out, const Event* b, const Event* e, const EventList& extra,
+                           bool reversed) {
+        out.reserve(size_t(e - b) + extra.size());
+        size_t j = 0;
+        auto add = [&](const Event& own) {
+            while (j < extra.size() && extra[j] < own) out.push_back(extra[j++]);
+            out.push_back(own);
+        };
+        if (reversed) {
+            while (e != b) add(*--e);
+        } else {
+            for (; b != e; ++b) add(*b);
+        }
+        out.insert(out.end(), extra.begin() + j, extra.end());
+    }
+
+    void split_events(NodeEvents& ev, const Split& s, const Box& lbox, const Box& rbox,
+                      TaskScratch& scratch, TaskCredit& credit, int depth, NodeEvents& left,
+                      NodeEvents& right) const {
+        clip_straddling(s, lbox, rbox, scratch);
+        for (int k = 0; k < 3; ++k) scratch.reserve_part(k, ev.axis[k].size(), credit, depth);
+        left.count = s.n_left;
+        right.count = s.n_right;
+        if (threads_ > 1 && ev.count > kParallelAxes) {
+            // Big nodes near the root: the three axes split in parallel.
+            auto a1 = std::async(std::launch::async, [&] { split_axis(ev, 1, scratch, left, right); });
+            auto a2 = std::async(std::launch::async, [&] { split_axis(ev, 2, scratch, left, right); });
+            split_axis(ev, 0, scratch, left, right);
+            a1.get();
+            a2.get();
+        } else {
+            for (int k = 0; k < 3; ++k) split_axis(ev, k, scratch, left, right);
         }
     }
 
@@ -274,7 +332,7 @@ private:
     }
 
     std::unique_ptr<BuildNode> build_node(NodeEvents ev, const Box& box, int depth, double budget,
-                                          std::vector<uint8_t>& side, TaskCredit& credit) {
+                                          TaskScratch& scratch, TaskCredit& credit) {
         if (progress_) progress_->check();
         memory_.check();
         const float leaf_cost = cost_.leaf(ev.count);
@@ -301,8 +359,8 @@ private:
         Box lbox = box, rbox = box;
         lbox.hi[s.axis] = s.pos;
         rbox.lo[s.axis] = s.pos;
-        classify(ev, s, side);
-        split_events(ev, s, lbox, rbox, side, left, right);
+        classify(ev, s, scratch);
+        split_events(ev, s, lbox, rbox, scratch, credit, depth, left, right);
         // split_events freed the node's own lists: one release for both.
         work.absorb(std::move(ev.charge));
         work.reset();
@@ -318,11 +376,11 @@ private:
             auto right_task = std::async(std::launch::async, [&, r = std::move(right)]() mutable {
                 return build(std::move(r), rbox, depth + 1, rbudget);
             });
-            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side, credit);
+            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, scratch, credit);
             node->child[1] = right_task.get();
         } else {
-            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, side, credit);
-            node->child[1] = build_node(std::move(right), rbox, depth + 1, rbudget, side, credit);
+            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, scratch, credit);
+            node->child[1] = build_node(std::move(right), rbox, depth + 1, rbudget, scratch, credit);
         }
         return node;
     }
