@@ -8,45 +8,35 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <future>
 #include <memory>
 
 #include "build_tree.hpp"
 #include "clip.hpp"
 #include "cost_model.hpp"
+#include "kd_events.hpp"
 #include "parallel.hpp"
 
 namespace bsp {
 namespace {
 
-enum EventType : uint32_t { kEnd = 0, kPlanar = 1, kStart = 2 };
-
-// 8 bytes: position plus (triangle << 2 | type). Ends sort before planar
-// before starts at equal positions, which the sweep relies on.
-struct Event {
-    float pos;
-    uint32_t key;
-    uint32_t tri() const { return key >> 2; }
-    uint32_t type() const { return key & 3u; }
-    bool operator<(const Event& o) const {
-        return pos < o.pos || (pos == o.pos && (key & 3u) < (o.key & 3u));
-    }
-};
-
 using EventList = std::vector<Event>;
 
 struct NodeEvents {
-    EventList axis[3];
+    EventSpan axis[3];   // in the task's EventStack
     uint32_t count = 0;  // triangles in the node
-    Charge charge;       // the lists' bytes in the memory budget
 };
 
-// The memory budget's view of a node's event lists: two events per axis per
-// triangle at most (a planar one has one), charged before they are filled.
+// Two events per axis per triangle at most (a planar one has one).
 constexpr uint64_t kEventBytesPerRef = 6 * sizeof(Event);
 // A triangle straddling a split while the children's lists are made: its
 // index and its clipped events on both sides, before they are merged in.
 constexpr uint64_t kStraddleBytes = sizeof(uint32_t) + 2 * kEventBytesPerRef;
+// A build task's stack of event lists grows in blocks of (at least) this
+// many times the events of the task's root: a depth-first build needs
+// about twice its root's lists (the right children waiting along the path).
+constexpr double kStackBlockShare = 0.5;
 
 // A triangle's events along axis k: one planar event, or a start and an end.
 void add_axis_events(const Box& b, uint32_t tri, int k, EventList& out) {
@@ -75,23 +65,14 @@ constexpr uint32_t kParallelAxes = 1u << 16;
 
 enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2 };
 
-// A build task's working memory, reused from node to node so that splitting
-// a node allocates only the children's own lists.
+// A build task's working memory, reused from node to node.
 struct TaskScratch {
     std::vector<uint8_t> side;            // per triangle: its Side at the current split
     std::vector<uint32_t> straddling;     // the triangles the current plane cuts
     EventList new_left[3], new_right[3];  // their clipped events, per axis
-    EventList part[3];                    // per axis: an event list split in two
-    Charge part_charge;                   // the part lists' bytes in the memory budget
+    EventStack stack;                     // the nodes' event lists
 
-    // Room for splitting a list of n events along axis k. The parts grow to
-    // the task's largest (first) node and stay: charged once, as they grow.
-    void reserve_part(int k, size_t n, TaskCredit& credit, int depth) {
-        if (part[k].size() >= n) return;
-        part_charge.absorb(Charge(credit, (n - part[k].size()) * sizeof(Event), depth,
-                                  "a build task's event split lists"));
-        part[k].resize(n);
-    }
+    explicit TaskScratch(size_t block_events) : stack(block_events) {}
 };
 
 class KdBuilder {
@@ -103,14 +84,28 @@ public:
         spawn_depth_ = spawn_depth(threads);
     }
 
-    // A build task: the root, or a subtree on a thread of its own.
-    std::unique_ptr<BuildNode> build(NodeEvents ev, const Box& box, int depth, double budget) {
+    // A build task: the root, or a subtree on a thread of its own. Its
+    // lists are copied into the task's own stack first; then `copied` runs
+    // (the root's frees the lists it was given).
+    std::unique_ptr<BuildNode> build(const NodeEvents& from, const Box& box, int depth,
+                                     double budget, const std::function<void()>& copied = {}) {
         TaskCredit credit(memory_);
-        ev.charge.move_to(credit);
         const Charge side_charge(credit, tris_.size(), depth, "a build task's triangle marks");
-        TaskScratch scratch;
+        const size_t events = from.axis[0].size + from.axis[1].size + from.axis[2].size;
+        TaskScratch scratch(size_t(double(events) * kStackBlockShare));
         scratch.side.resize(tris_.size());
-        return build_node(std::move(ev), box, depth, budget, scratch, credit);
+        // The first block holds the lists and, for a depth-first build, about
+        // as much again for the right children waiting along the path.
+        Event* room = scratch.stack.push(2 * events, credit, depth);
+        scratch.stack.shrink_last(room, events);
+        NodeEvents ev;
+        ev.count = from.count;
+        for (int k = 0; k < 3; ++k) {
+            ev.axis[k] = {room, from.axis[k].size};
+            room = std::copy(from.axis[k].begin(), from.axis[k].end(), room);
+        }
+        if (copied) copied();
+        return build_node(ev, box, depth, budget, scratch, credit);
     }
 
 private:
@@ -131,14 +126,18 @@ private:
         const float inv_area = 1.0f / parent_area;
         const int a = (k + 1) % 3, b = (k + 2) % 3;
         const float cap = d[a] * d[b], rim = d[a] + d[b];
-        const EventList& e = ev.axis[k];
+        const EventSpan& e = ev.axis[k];
         uint32_t nl = 0, nr = ev.count;
-        for (size_t i = 0; i < e.size();) {
+        for (size_t i = 0; i < e.size;) {
             const float p = e[i].pos;
-            uint32_t ends = 0, planars = 0, starts = 0;
-            while (i < e.size() && e[i].pos == p && e[i].type() == kEnd) ++ends, ++i;
-            while (i < e.size() && e[i].pos == p && e[i].type() == kPlanar) ++planars, ++i;
-            while (i < e.size() && e[i].pos == p && e[i].type() == kStart) ++starts, ++i;
+            // The events at p, counted by type (ends, planars, starts: the
+            // sort put them in that order, so counting needs no order).
+            uint32_t by_type[4] = {0, 0, 0, 0};
+            do {
+                ++by_type[e[i].type()];
+            } while (++i < e.size && e[i].pos == p);
+            const uint32_t ends = by_type[kEnd], planars = by_type[kPlanar],
+                           starts = by_type[kStart];
             nr -= planars + ends;
             const bool inside = p > box.lo[k] && p < box.hi[k];
             // On the cell's own face a split can still pay: it cuts the
@@ -233,74 +232,97 @@ private:
     }
 
     // Splits the node's sorted events along axis k into the children's
-    // sorted events: one pass sends each event to its side (left ones to the
-    // front of the scratch list, right ones to its back, so no second pass
-    // is needed to count them), then each side is merged with the straddling
-    // triangles' new events into a list of exactly its size.
-    void split_axis(NodeEvents& ev, int k, TaskScratch& scratch, NodeEvents& left,
-                    NodeEvents& right) const {
+    // sorted events in one pass: the left ones move down in place (the left
+    // child's list overwrites the node's own, which is never read again),
+    // the right ones go to `right_room` on top of the stack. Then each side
+    // takes in the straddling triangles' new events by a merge from the back,
+    // in place. The left side with its new events never holds more than the
+    // node did along this axis (a cut triangle's new events replace as many
+    // of its own), except that a rounded, inverted clipped box can add one:
+    // then it returns false, the left's own events at the front of the
+    // node's list, and move_left finishes it.
+    bool split_axis(NodeEvents& ev, int k, TaskScratch& scratch, Event* right_room,
+                    NodeEvents& left, NodeEvents& right, size_t& nl) const {
         EventList& new_left = scratch.new_left[k];
         EventList& new_right = scratch.new_right[k];
         std::sort(new_left.begin(), new_left.end());
         std::sort(new_right.begin(), new_right.end());
-        const EventList& in = ev.axis[k];
-        EventList& part = scratch.part[k];
+        const EventSpan in = ev.axis[k];
         const uint8_t* side = scratch.side.data();
-        Event* front = part.data();
-        Event* back = part.data() + in.size();  // right events, written downwards
+        Event* l = in.data;
+        Event* r = right_room;
         for (const Event& e : in) {
-            // Branch-free: both slots are written, one pointer moves. The
-            // slot below `back` is free (front < back while events remain),
-            // so a write there that does not count is harmless.
+            // Branch-free: both are written, one pointer moves. The slot at
+            // l is the one just read or an earlier one (l never passes the
+            // reader), and the one at r is free room.
             const uint8_t sd = side[e.tri()];
-            *front = e;
-            back[-1] = e;
-            front += sd == kLeftOnly;
-            back -= sd == kRightOnly;
+            const Event copy = e;
+            *l = copy;
+            *r = copy;
+            l += sd == kLeftOnly;
+            r += sd == kRightOnly;
         }
-        // [back, end) holds the right events in reverse order.
-        const size_t nl = size_t(front - part.data());
-        const Event* rbegin = back;
-        const Event* rend = part.data() + in.size();
-        EventList().swap(ev.axis[k]);  // free the parent's list early
-        merge_into(left.axis[k], part.data(), part.data() + nl, new_left, false);
-        merge_into(right.axis[k], rbegin, rend, new_right, true);
+        nl = size_t(l - in.data);
+        const size_t nr = size_t(r - right_room);
+        right.axis[k] = {right_room, nr + new_right.size()};
+        merge_tail(right_room, nr, new_right);
+        if (nl + new_left.size() > in.size) return false;
+        left.axis[k] = {in.data, nl + new_left.size()};
+        merge_tail(in.data, nl, new_left);
+        return true;
     }
 
-    // out = the sorted merge of [b, e) (reversed if `reversed`) and `extra`;
-    // an extra event goes after an equal one of the node's own.
-    static void merge_into(EventList& out, const Event* b, const Event* e, const EventList& extra,
-                           bool reversed) {
-        out.reserve(size_t(e - b) + extra.size());
-        size_t j = 0;
-        auto add = [&](const Event& own) {
-            while (j < extra.size() && extra[j] < own) out.push_back(extra[j++]);
-            out.push_back(own);
-        };
-        if (reversed) {
-            while (e != b) add(*--e);
-        } else {
-            for (; b != e; ++b) add(*b);
+    // The left list that did not fit in place: moved to the stack, then merged.
+    void move_left(const NodeEvents& ev, int k, size_t nl, TaskScratch& scratch,
+                   NodeEvents& left, TaskCredit& credit, int depth) const {
+        const EventList& new_left = scratch.new_left[k];
+        Event* out = scratch.stack.push(nl + new_left.size(), credit, depth);
+        std::copy(ev.axis[k].data, ev.axis[k].data + nl, out);
+        left.axis[k] = {out, nl + new_left.size()};
+        merge_tail(out, nl, new_left);
+    }
+
+    // `out` holds `n` sorted events followed by room for `extra`; merges the
+    // sorted `extra` in from the back, in place (an extra event goes after
+    // an equal one of the node's own).
+    static void merge_tail(Event* out, size_t n, const EventList& extra) {
+        size_t i = n, j = extra.size(), w = n + extra.size();
+        while (j > 0) {
+            if (i > 0 && extra[j - 1] < out[i - 1]) out[--w] = out[--i];
+            else out[--w] = extra[--j];
         }
-        out.insert(out.end(), extra.begin() + j, extra.end());
     }
 
     void split_events(NodeEvents& ev, const Split& s, const Box& lbox, const Box& rbox,
                       TaskScratch& scratch, TaskCredit& credit, int depth, NodeEvents& left,
                       NodeEvents& right) const {
         clip_straddling(s, lbox, rbox, scratch);
-        for (int k = 0; k < 3; ++k) scratch.reserve_part(k, ev.axis[k].size(), credit, depth);
         left.count = s.n_left;
         right.count = s.n_right;
+        // The right side needs at most the node's events plus the new ones.
+        auto room = [&](int k) { return ev.axis[k].size + scratch.new_right[k].size(); };
+        size_t nl[3];
+        bool fits[3];
         if (threads_ > 1 && ev.count > kParallelAxes) {
-            // Big nodes near the root: the three axes split in parallel.
-            auto a1 = std::async(std::launch::async, [&] { split_axis(ev, 1, scratch, left, right); });
-            auto a2 = std::async(std::launch::async, [&] { split_axis(ev, 2, scratch, left, right); });
-            split_axis(ev, 0, scratch, left, right);
+            // Big nodes near the root: the three axes split in parallel, each
+            // into room taken beforehand (the stack is not shared by threads).
+            Event* r[3];
+            for (int k = 0; k < 3; ++k) r[k] = scratch.stack.push(room(k), credit, depth);
+            auto task = [&](int k) { fits[k] = split_axis(ev, k, scratch, r[k], left, right, nl[k]); };
+            auto a1 = std::async(std::launch::async, task, 1);
+            auto a2 = std::async(std::launch::async, task, 2);
+            task(0);
             a1.get();
             a2.get();
+            for (int k = 0; k < 3; ++k)
+                if (!fits[k]) move_left(ev, k, nl[k], scratch, left, credit, depth);
         } else {
-            for (int k = 0; k < 3; ++k) split_axis(ev, k, scratch, left, right);
+            for (int k = 0; k < 3; ++k) {
+                Event* r = scratch.stack.push(room(k), credit, depth);
+                fits[k] = split_axis(ev, k, scratch, r, left, right, nl[k]);
+                scratch.stack.shrink_last(r, right.axis[k].size);
+                if (!fits[k]) move_left(ev, k, nl[k], scratch, left, credit, depth);
+            }
         }
     }
 
@@ -343,26 +365,20 @@ private:
         const double refs = double(s.n_left) + double(s.n_right);
         if (refs > budget) return make_leaf(ev, box, depth, credit);
 
-        // Charged before anything is allocated: the children's lists (they
-        // go with them), the straddling triangles' new events (freed after
-        // the split) and this node (kept).
+        // The straddling triangles' new events (freed after the split) and
+        // this node (kept); the children's lists are the stack's.
         const uint64_t children = uint64_t(s.n_left) + s.n_right;
         const uint64_t straddling = children > ev.count ? children - ev.count : 0;
-        Charge work(credit,
-                    kEventBytesPerRef * children + kStraddleBytes * straddling + kBuildNodeBytes,
-                    depth, "the children's event lists");
+        Charge(credit, kBuildNodeBytes, depth, "a build node").keep();
+        Charge work(credit, kStraddleBytes * straddling, depth, "the children's event lists");
         NodeEvents left, right;
-        left.charge = work.take(kEventBytesPerRef * s.n_left);
-        right.charge = work.take(kEventBytesPerRef * s.n_right);
-        work.take(kBuildNodeBytes).keep();
+        const EventStack::Mark mark = scratch.stack.mark();
 
         Box lbox = box, rbox = box;
         lbox.hi[s.axis] = s.pos;
         rbox.lo[s.axis] = s.pos;
         classify(ev, s, scratch);
         split_events(ev, s, lbox, rbox, scratch, credit, depth, left, right);
-        // split_events freed the node's own lists: one release for both.
-        work.absorb(std::move(ev.charge));
         work.reset();
 
         double lbudget, rbudget;
@@ -373,15 +389,18 @@ private:
         node->split = s.pos;
         node->area = box.area();
         if (depth < spawn_depth_ && ev.count > 4096) {
-            auto right_task = std::async(std::launch::async, [&, r = std::move(right)]() mutable {
-                return build(std::move(r), rbox, depth + 1, rbudget);
+            // The right lists stay put until the task has copied them: the
+            // left subtree only writes above them.
+            auto right_task = std::async(std::launch::async, [&] {
+                return build(right, rbox, depth + 1, rbudget);
             });
-            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, scratch, credit);
+            node->child[0] = build_node(left, lbox, depth + 1, lbudget, scratch, credit);
             node->child[1] = right_task.get();
         } else {
-            node->child[0] = build_node(std::move(left), lbox, depth + 1, lbudget, scratch, credit);
-            node->child[1] = build_node(std::move(right), rbox, depth + 1, rbudget, scratch, credit);
+            node->child[0] = build_node(left, lbox, depth + 1, lbudget, scratch, credit);
+            node->child[1] = build_node(right, rbox, depth + 1, rbudget, scratch, credit);
         }
+        scratch.stack.release(mark);
         return node;
     }
 };
@@ -393,21 +412,28 @@ Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
     return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep,
                                                           MemoryBudget& memory) {
         TaskCredit credit(memory);
-        NodeEvents root;
-        root.count = uint32_t(prep.live.size());
-        root.charge = Charge(credit, kEventBytesPerRef * prep.live.size(), 0, "the event lists");
+        const size_t n = prep.live.size();
+        Charge lists(credit, kEventBytesPerRef * n, 0, "the event lists");
+        EventList axis[3];
         const int threads = resolve_threads(options.threads);
         // The three axes' event lists are independent: fill and sort them in parallel.
         parallel_for(3, 1, threads, [&](size_t k0, size_t k1) {
             for (size_t k = k0; k < k1; ++k) {
-                EventList& e = root.axis[k];
-                e.reserve(2 * prep.live.size());
+                EventList& e = axis[k];
+                e.reserve(2 * n);
                 for (uint32_t i : prep.live) add_axis_events(tree.triangles[i].bounds(), i, int(k), e);
                 std::sort(e.begin(), e.end());
             }
         });
+        NodeEvents root;
+        root.count = uint32_t(n);
+        for (int k = 0; k < 3; ++k) root.axis[k] = {axis[k].data(), axis[k].size()};
         KdBuilder builder(tree.triangles, tree.options, progress, threads, memory);
-        return builder.build(std::move(root), tree.bounds, 0, prep.ref_budget);
+        // The root task copies the lists into its stack; these go at once.
+        return builder.build(root, tree.bounds, 0, prep.ref_budget, [&] {
+            for (EventList& e : axis) EventList().swap(e);
+            lists.reset();
+        });
     });
 }
 
