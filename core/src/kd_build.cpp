@@ -148,8 +148,10 @@ private:
             if (inside || at_lo || at_hi) {
                 const float pl = 2.0f * (cap + (p - box.lo[k]) * rim) * inv_area;
                 const float pr = 2.0f * (cap + (box.hi[k] - p) * rim) * inv_area;
-                for (int planar_left = at_hi ? 0 : 1; planar_left >= (at_lo ? 1 : 0);
-                     --planar_left) {
+                // Planar triangles go left, then right; without any, both
+                // would give the same cost and the first would stay.
+                const int last = at_lo || planars == 0 ? 1 : 0;
+                for (int planar_left = at_hi ? 0 : 1; planar_left >= last; --planar_left) {
                     uint32_t l = nl + (planar_left ? planars : 0);
                     uint32_t r = nr + (planar_left ? 0 : planars);
                     const float cost = cost_.split(cost_.kd_step(), pl, l, pr, r);
@@ -417,7 +419,9 @@ Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
         EventList axis[3];
         const int threads = resolve_threads(options.threads);
         // The three axes' event lists are independent: fill and sort them in parallel.
-        parallel_for(3, 1, threads, [&](size_t k0, size_t k1) {
+        // Three threads even on two cores: the last axis is then shared
+        // rather than left to one core while the other idles.
+        parallel_for(3, 1, threads > 1 ? 3 : 1, [&](size_t k0, size_t k1) {
             for (size_t k = k0; k < k1; ++k) {
                 EventList& e = axis[k];
                 e.reserve(2 * n);
