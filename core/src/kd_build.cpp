@@ -67,12 +67,26 @@ enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2 };
 
 // A build task's working memory, reused from node to node.
 struct TaskScratch {
-    std::vector<uint8_t> side;            // per triangle: its Side at the current split
+    // Per triangle: its Side at the current split, tagged with the split's
+    // pass number, so that a mark left by an earlier node is told apart
+    // from one made in this pass without clearing the marks at every node.
+    std::vector<uint16_t> marks;
+    uint16_t pass = 0;
     std::vector<uint32_t> straddling;     // the triangles the current plane cuts
     EventList new_left[3], new_right[3];  // their clipped events, per axis
     EventStack stack;                     // the nodes' event lists
 
     explicit TaskScratch(size_t block_events) : stack(block_events) {}
+
+    // The tag of a new pass (above the two Side bits). After 2^14 passes
+    // the tags start over, with every mark cleared.
+    uint16_t next_pass() {
+        if (++pass == (1u << 14)) {
+            std::fill(marks.begin(), marks.end(), uint16_t(0));
+            pass = 1;
+        }
+        return uint16_t(pass << 2);
+    }
 };
 
 class KdBuilder {
@@ -90,10 +104,11 @@ public:
     std::unique_ptr<BuildNode> build(const NodeEvents& from, const Box& box, int depth,
                                      double budget, const std::function<void()>& copied = {}) {
         TaskCredit credit(memory_);
-        const Charge side_charge(credit, tris_.size(), depth, "a build task's triangle marks");
+        const Charge side_charge(credit, tris_.size() * sizeof(uint16_t), depth,
+                                 "a build task's triangle marks");
         const size_t events = from.axis[0].size + from.axis[1].size + from.axis[2].size;
         TaskScratch scratch(size_t(double(events) * kStackBlockShare));
-        scratch.side.resize(tris_.size());
+        scratch.marks.resize(tris_.size());
         // The first block holds the lists and, for a depth-first build, about
         // as much again for the right children waiting along the path.
         Event* room = scratch.stack.push(2 * events, credit, depth);
@@ -183,31 +198,35 @@ private:
 
     // Marks every triangle of the node with the side(s) of `s` it lies on,
     // and lists the triangles the plane cuts (in the order of their starts
-    // along the split axis). Every triangle starts as "both", set from the
-    // x events, before the split axis's events narrow it down: a start
-    // right of the plane, an end left of it, or a planar event. The reset
-    // pass cannot be folded into the second: a rounded, clipped box can be
-    // inverted (its end before its start), and then the later event wins.
+    // along the split axis), in one pass over the split axis's events: a
+    // start right of the plane, an end left of it, or a planar event decide
+    // the side, and a triangle none of them decides lies on both. A rounded,
+    // clipped box can be inverted (its end before its start); then the
+    // later event wins, and a start left of the plane keeps the left mark
+    // its end made in this pass.
     void classify(const NodeEvents& ev, const Split& s, TaskScratch& scratch) const {
-        std::vector<uint8_t>& side = scratch.side;
-        for (const Event& e : ev.axis[0])
-            if (e.type() != kEnd) side[e.tri()] = kBoth;
+        uint16_t* marks = scratch.marks.data();
+        const uint16_t now = scratch.next_pass();
         std::vector<uint32_t>& straddling = scratch.straddling;
         straddling.clear();
         for (const Event& e : ev.axis[s.axis]) {
             const uint32_t t = e.tri();
             if (e.type() == kEnd) {
-                if (e.pos <= s.pos) side[t] = kLeftOnly;
+                if (e.pos <= s.pos) marks[t] = now | kLeftOnly;
             } else if (e.type() == kStart) {
-                if (e.pos >= s.pos) side[t] = kRightOnly;
-                else straddling.push_back(t);  // unless its end turns out left
+                if (e.pos >= s.pos) {
+                    marks[t] = now | kRightOnly;
+                } else if ((marks[t] & ~3u) != now) {
+                    marks[t] = now | kBoth;
+                    straddling.push_back(t);  // unless its end turns out left
+                }
             } else {
                 const bool left = e.pos < s.pos || (e.pos == s.pos && s.planar_left);
-                side[t] = left ? kLeftOnly : kRightOnly;
+                marks[t] = now | (left ? kLeftOnly : kRightOnly);
             }
         }
         straddling.erase(std::remove_if(straddling.begin(), straddling.end(),
-                                        [&](uint32_t t) { return side[t] != kBoth; }),
+                                        [&](uint32_t t) { return (marks[t] & 3u) != kBoth; }),
                          straddling.end());
     }
 
@@ -250,14 +269,14 @@ private:
         std::sort(new_left.begin(), new_left.end());
         std::sort(new_right.begin(), new_right.end());
         const EventSpan in = ev.axis[k];
-        const uint8_t* side = scratch.side.data();
+        const uint16_t* marks = scratch.marks.data();
         Event* l = in.data;
         Event* r = right_room;
         for (const Event& e : in) {
             // Branch-free: both are written, one pointer moves. The slot at
             // l is the one just read or an earlier one (l never passes the
             // reader), and the one at r is free room.
-            const uint8_t sd = side[e.tri()];
+            const uint32_t sd = marks[e.tri()] & 3u;
             const Event copy = e;
             *l = copy;
             *r = copy;
