@@ -1,10 +1,12 @@
 #include "build_tree.hpp"
 
 #include "cost_model.hpp"
+#include "parallel.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <new>
 #include <stdexcept>
 #include <tuple>
@@ -174,6 +176,25 @@ std::vector<std::string> degeneracy_warnings(const BuildStats& st) {
         out.push_back(buf);
     }
     return out;
+}
+
+namespace {
+
+void free_subtree(std::unique_ptr<BuildNode> node, int depth, int spawn) {
+    if (!node) return;
+    if (depth < spawn && node->kind != NodeKind::Leaf) {
+        auto right = std::async(std::launch::async, free_subtree, std::move(node->child[1]),
+                                depth + 1, spawn);
+        free_subtree(std::move(node->child[0]), depth + 1, spawn);
+        right.get();
+    }
+    // Deeper down, the unique_ptrs free the rest recursively.
+}
+
+}  // namespace
+
+void free_build_tree(std::unique_ptr<BuildNode> root, int threads) {
+    free_subtree(std::move(root), 0, spawn_depth(resolve_threads(threads)));
 }
 
 void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
