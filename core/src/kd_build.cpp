@@ -407,7 +407,9 @@ private:
 
         auto node = std::make_unique<BuildNode>();
         node->kind = kd_kind(s.axis);
-        node->split = s.pos;
+        // -0 and +0 are the same plane, and the sweep may meet either first
+        // among equal events (their order is the sort's): store one of them.
+        node->split = s.pos == 0.0f ? 0.0f : s.pos;
         node->area = box.area();
         if (depth < spawn_depth_ && ev.count > 4096) {
             // The right lists stay put until the task has copied them: the
@@ -434,8 +436,10 @@ Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                                                           MemoryBudget& memory) {
         TaskCredit credit(memory);
         const size_t n = prep.live.size();
+        // The lists and, while they are sorted, as much again.
         Charge lists(credit, kEventBytesPerRef * n, 0, "the event lists");
-        EventList axis[3];
+        Charge sorting(credit, kEventBytesPerRef * n, 0, "sorting the event lists");
+        EventList axis[3], sort_tmp[3];
         const int threads = resolve_threads(options.threads);
         // The three axes' event lists are independent: fill and sort them in parallel.
         // Three threads even on two cores: the last axis is then shared
@@ -445,9 +449,11 @@ Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                 EventList& e = axis[k];
                 e.reserve(2 * n);
                 for (uint32_t i : prep.live) add_axis_events(tree.triangles[i].bounds(), i, int(k), e);
-                std::sort(e.begin(), e.end());
+                radix_sort_events(e, sort_tmp[k]);
+                EventList().swap(sort_tmp[k]);
             }
         });
+        sorting.reset();
         NodeEvents root;
         root.count = uint32_t(n);
         for (int k = 0; k < 3; ++k) root.axis[k] = {axis[k].data(), axis[k].size()};
