@@ -3,6 +3,8 @@
 // memory budget while the stack holds it.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "kd_events.hpp"
 
 namespace bsp {
@@ -79,6 +81,30 @@ TEST(Event, OrdersByPositionThenEndPlanarStart) {
     EXPECT_FALSE(start < end);
     EXPECT_EQ(planar.tri(), 3u);
     EXPECT_EQ(planar.type(), uint32_t(kPlanar));
+}
+
+TEST(Event, RadixSortOrdersAsOperatorLessAndKeepsTiesInOrder) {
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> pos(-20, 20), type(0, 2);
+    std::vector<Event> events, tmp;
+    for (uint32_t t = 0; t < 20000; ++t) {
+        // Few distinct positions (many ties), both zeros, tiny and huge values.
+        float p = float(pos(rng)) * 0.25f;
+        if (t % 97 == 0) p = -0.0f;
+        if (t % 89 == 0) p = 1e-38f * float(pos(rng));
+        if (t % 83 == 0) p = 3e38f * float(pos(rng) % 2);
+        events.emplace_back(p, t << 2 | uint32_t(type(rng)));
+    }
+    std::vector<Event> expected = events;
+    std::stable_sort(expected.begin(), expected.end());
+    radix_sort_events(events, tmp);
+    ASSERT_EQ(events.size(), expected.size());
+    for (size_t i = 0; i < events.size(); ++i) {
+        // -0 and +0 are equal to operator<, so stable_sort leaves them
+        // mixed as the radix sort does: compare the keys, not the bits.
+        EXPECT_EQ(events[i].key, expected[i].key) << i;
+        EXPECT_TRUE(events[i].pos == expected[i].pos) << i;
+    }
 }
 
 }  // namespace
