@@ -1,5 +1,5 @@
-"""Command line: `python -m bsplab {demo,bench,bench-family,bench-cull,experiment,report,results,
-agree,calibrate,scenes,methods}`."""
+"""Command line: `python -m bsplab {demo,bench,bench-family,bench-cull,bench-build,experiment,
+report,results,agree,calibrate,scenes,methods}`."""
 
 from __future__ import annotations
 
@@ -127,6 +127,19 @@ def cmd_cull(args) -> int:
     from bsplab.lab import benchmarks
     return benchmarks.bench_cull(_doc(args, "cull_benchmark.md"), args.scenes, side=args.side,
                                  repeats=args.repeats)
+
+
+def cmd_build_bench(args) -> int:
+    from bsplab.lab import build_bench
+    out = output_file(args.out, "--out", "build_benchmark.md") if args.out else None
+    rows = build_bench.bench_build(args.scenes, rounds=args.repeats, threads=args.threads)
+    text = build_bench.build_markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
+    print(text)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+        print(f"written {out}")
+    return 0 if rows else 1
 
 
 def cmd_experiment(args) -> int:
@@ -275,6 +288,14 @@ def main(argv=None) -> int:
     u.add_argument("--repeats", type=whole(1), help="paired rounds (default 3)")
     u.add_argument("--out", help="write Markdown here (rows in data/ beside it)")
     u.set_defaults(func=cmd_cull)
+
+    bb = sub.add_parser("bench-build", help="kd build time against Embree's BVH build")
+    bb.add_argument("--scenes", nargs="+", help="default: the seven shared meshes")
+    bb.add_argument("--repeats", type=whole(1), default=3, help="paired rounds (default 3)")
+    bb.add_argument("--threads", type=whole(0), default=0,
+                    help="the second kd column's threads (default 0: all cores)")
+    bb.add_argument("--out", help="also write the Markdown table here")
+    bb.set_defaults(func=cmd_build_bench)
 
     x = sub.add_parser("experiment", help="run an experiment spec (TOML or JSON), resumable")
     x.add_argument("spec", help="spec file; see docs/experiments.md")

@@ -1,10 +1,12 @@
 #include "build_tree.hpp"
 
 #include "cost_model.hpp"
+#include "parallel.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <new>
 #include <stdexcept>
 #include <tuple>
@@ -47,7 +49,9 @@ struct StatsWalker {
     double inv_root_area = 0;
     double leaf_depth_sum = 0;
     uint64_t single_leaves = 0;  // one-reference leaves: inlined unless boxes are clipped
-    std::vector<std::vector<Direction>> level_dirs{};
+    std::vector<std::vector<Direction>> level_dirs{};  // general nodes' normals per level
+    std::vector<uint8_t> level_axes{};                 // per level: a bit per kd axis used
+    std::vector<uint64_t> level_planes{};              // per level: interior nodes
 
     void walk(const BuildNode& n, int depth) {
         const double p = double(n.area) * inv_root_area;
@@ -64,11 +68,18 @@ struct StatsWalker {
             return;
         }
         ++st.interior_nodes;
-        if (level_dirs.size() <= size_t(depth)) level_dirs.resize(depth + 1);
+        if (level_dirs.size() <= size_t(depth)) {
+            level_dirs.resize(depth + 1);
+            level_axes.resize(depth + 1);
+            level_planes.resize(depth + 1);
+        }
+        ++level_planes[depth];
         if (is_kd(n.kind)) {
+            // A bit, not a direction per node: a kd tree has a million nodes
+            // and three directions, and sorting their copies showed up in
+            // the build's profile.
             ++st.kd_nodes;
-            const int axis = axis_of(n.kind);
-            level_dirs[depth].emplace_back(float(axis == 0), float(axis == 1), float(axis == 2));
+            level_axes[depth] |= uint8_t(1u << axis_of(n.kind));
         } else {
             ++st.general_nodes;
             level_dirs[depth].emplace_back(n.plane.nx, n.plane.ny, n.plane.nz);
@@ -167,15 +178,38 @@ std::vector<std::string> degeneracy_warnings(const BuildStats& st) {
     return out;
 }
 
+namespace {
+
+void free_subtree(std::unique_ptr<BuildNode> node, int depth, int spawn) {
+    if (!node) return;
+    if (depth < spawn && node->kind != NodeKind::Leaf) {
+        auto right = std::async(std::launch::async, free_subtree, std::move(node->child[1]),
+                                depth + 1, spawn);
+        free_subtree(std::move(node->child[0]), depth + 1, spawn);
+        right.get();
+    }
+    // Deeper down, the unique_ptrs free the rest recursively.
+}
+
+}  // namespace
+
+void free_build_tree(std::unique_ptr<BuildNode> root, int threads) {
+    free_subtree(std::move(root), 0, spawn_depth(resolve_threads(threads)));
+}
+
 void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
     BuildStats& st = tree.stats;
     StatsWalker w{CostModel(tree.options), st};
     w.inv_root_area = root.area > 0 ? 1.0 / double(root.area) : 0.0;
     w.walk(root, 0);
     st.mean_leaf_depth = st.leaves ? w.leaf_depth_sum / double(st.leaves) : 0.0;
-    for (auto& dirs : w.level_dirs) {
+    for (size_t depth = 0; depth < w.level_dirs.size(); ++depth) {
+        std::vector<Direction>& dirs = w.level_dirs[depth];
         LevelStats ls;
-        ls.planes = dirs.size();
+        ls.planes = w.level_planes[depth];
+        for (int axis = 0; axis < 3; ++axis)
+            if (w.level_axes[depth] & (1u << axis))
+                dirs.emplace_back(float(axis == 0), float(axis == 1), float(axis == 2));
         std::sort(dirs.begin(), dirs.end());
         ls.directions = uint64_t(std::unique(dirs.begin(), dirs.end()) - dirs.begin());
         st.levels.push_back(ls);

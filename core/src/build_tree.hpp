@@ -77,6 +77,11 @@ inline void split_budget(double budget, double n_left, double n_right, double& l
     right = budget - left;
 }
 
+// Frees a pointer tree, the subtrees down to spawn_depth(threads) on tasks
+// of their own: a kd tree of a million nodes took 60 ms to free one node
+// after the other, as long as a tenth of its build on two threads.
+void free_build_tree(std::unique_ptr<BuildNode> root, int threads);
+
 // Runs a builder: prepares the tree, lets build_root(tree, prepared, budget)
 // build the pointer tree over the live triangles (not called when there are
 // none), then fills the statistics, flattens, and times the whole build. The
@@ -95,6 +100,7 @@ Tree run_builder(std::vector<Triangle> triangles, const BuildOptions& options,
     std::unique_ptr<BuildNode> root =
         prep.live.empty() ? std::make_unique<BuildNode>() : build_root(tree, prep, budget);
     finish(tree, *root, budget);
+    free_build_tree(std::move(root), options.threads);
     tree.stats.peak_bytes = budget.peak();
     tree.stats.build_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -38,7 +38,7 @@ int clip_plane(const ClipVertex* in, int n, ClipVertex* out, int axis, float pla
     int m = 0;
     for (int i = 0; i < n; ++i) {
         const ClipVertex& a = in[i];
-        const ClipVertex& b = in[(i + 1) % n];
+        const ClipVertex& b = in[i + 1 < n ? i + 1 : 0];
         float da = sign * (a.p[axis] - plane), db = sign * (b.p[axis] - plane);
         if (da >= 0.0f) out[m++] = a;
         if ((da < 0.0f && db > 0.0f) || (da > 0.0f && db < 0.0f))
@@ -47,18 +47,30 @@ int clip_plane(const ClipVertex* in, int n, ClipVertex* out, int axis, float pla
     return m;
 }
 
+// Whether clip_plane would keep the polygon as it is: every vertex on the
+// kept side (or on the plane), so no edge crosses it.
+bool inside_plane(const ClipVertex* in, int n, int axis, float plane, float sign) {
+    for (int i = 0; i < n; ++i)
+        if (!(sign * (in[i].p[axis] - plane) >= 0.0f)) return false;
+    return true;
+}
+
 // Clips the triangle to the box; returns the vertex count, the polygon in `out`.
 int clip_to_box(const Triangle& tri, const Box& box, ClipVertex (&buf)[2][kMaxVerts + 3],
                 int& cur) {
     int n = 3;
     for (int i = 0; i < 3; ++i) buf[0][i] = {tri.v[i], Vec3(0, 0, 0)};
     cur = 0;
+    // Most planes of the box do not cut the triangle (the builder clips the
+    // triangles a split plane straddles, which mostly lie well inside the
+    // rest of the cell): those are skipped, which gives the same polygon.
     for (int axis = 0; axis < 3 && n > 0; ++axis) {
-        n = clip_plane(buf[cur], n, buf[1 - cur], axis, box.lo[axis], 1.0f);
-        cur = 1 - cur;
-        if (n == 0) break;
-        n = clip_plane(buf[cur], n, buf[1 - cur], axis, box.hi[axis], -1.0f);
-        cur = 1 - cur;
+        for (float sign : {1.0f, -1.0f}) {
+            const float plane = sign > 0 ? box.lo[axis] : box.hi[axis];
+            if (n == 0 || inside_plane(buf[cur], n, axis, plane, sign)) continue;
+            n = clip_plane(buf[cur], n, buf[1 - cur], axis, plane, sign);
+            cur = 1 - cur;
+        }
     }
     return n;
 }
