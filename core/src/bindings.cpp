@@ -111,6 +111,15 @@ void put_polygons(nb::dict& d, bsp::PolygonSoup&& p) {
     d["offsets"] = owned_array(std::move(p.offsets));
 }
 
+// The per-row columns that split polygons and node cells share.
+template <class Rows>
+void put_node_rows(nb::dict& d, Rows& rows) {
+    d["node"] = owned_array(std::move(rows.node));
+    d["depth"] = owned_array(std::move(rows.depth));
+    d["kind"] = owned_array(std::move(rows.kind));
+    d["cut"] = rows.cut;
+}
+
 nb::dict split_polygons(const bsp::Tree& tree, int max_depth, uint32_t root, size_t max_polygons) {
     bsp::SplitPolygons s;
     {
@@ -119,11 +128,8 @@ nb::dict split_polygons(const bsp::Tree& tree, int max_depth, uint32_t root, siz
     }
     nb::dict d;
     put_polygons(d, std::move(s.polygons));
-    d["node"] = owned_array(std::move(s.node));
-    d["depth"] = owned_array(std::move(s.depth));
-    d["kind"] = owned_array(std::move(s.kind));
+    put_node_rows(d, s);
     d["plane"] = owned_array(std::move(s.planes), 4);
-    d["cut"] = s.cut;
     return d;
 }
 
@@ -136,10 +142,7 @@ nb::dict node_cells(const bsp::Tree& tree, int max_depth, uint32_t root, size_t 
     nb::dict d;
     put_polygons(d, std::move(c.faces));
     d["cell_offsets"] = owned_array(std::move(c.cell_offsets));
-    d["node"] = owned_array(std::move(c.node));
-    d["depth"] = owned_array(std::move(c.depth));
-    d["kind"] = owned_array(std::move(c.kind));
-    d["cut"] = c.cut;
+    put_node_rows(d, c);
     return d;
 }
 

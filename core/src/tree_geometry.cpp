@@ -87,17 +87,38 @@ struct Pending {
     Cell cell;
 };
 
-// Splits a pending node's cell and queues both children.
-void queue_children(const Tree& tree, Pending& p, std::deque<Pending>& queue) {
-    const Node& n = tree.nodes[p.index];
-    Vec3d normal;
-    double d;
-    scaled_plane(tree, n, normal, d);
-    Cell below, above;
-    p.cell.split(normal, d, below, above);
-    queue.push_back({below_child(p.index), p.depth + 1, std::move(below)});
-    queue.push_back({above_child(n), p.depth + 1, std::move(above)});
-}
+// The nodes of root's subtree level by level, each with its cell: the order
+// that keeps the shallow levels whole when a limit stops the walk.
+class LevelWalk {
+public:
+    LevelWalk(const Tree& tree, uint32_t root) : tree_(tree) {
+        check_root(tree, root);
+        queue_.push_back({root, 0, cell_of(tree, root)});
+    }
+    bool next(Pending& p) {
+        if (queue_.empty()) return false;
+        p = std::move(queue_.front());
+        queue_.pop_front();
+        return true;
+    }
+    // Queues both children of interior node p with the parts of its cell.
+    void push_children(const Pending& p, Cell&& below, Cell&& above) {
+        queue_.push_back({below_child(p.index), p.depth + 1, std::move(below)});
+        queue_.push_back({above_child(tree_.nodes[p.index]), p.depth + 1, std::move(above)});
+    }
+    void split_and_push(const Pending& p) {
+        Vec3d normal;
+        double d;
+        scaled_plane(tree_, tree_.nodes[p.index], normal, d);
+        Cell below, above;
+        p.cell.split(normal, d, below, above);
+        push_children(p, std::move(below), std::move(above));
+    }
+
+private:
+    const Tree& tree_;
+    std::deque<Pending> queue_;
+};
 
 }  // namespace
 
@@ -130,14 +151,11 @@ bool world_plane(const Tree& tree, uint32_t index, double plane[4]) {
 SplitPolygons split_polygons(const Tree& tree, int max_depth, uint32_t root, size_t max_polygons) {
     if (max_depth < 0)
         throw std::invalid_argument("max_depth must be >= 0, got " + std::to_string(max_depth));
-    check_root(tree, root);
     SplitPolygons out;
     const double inv_scale = 1.0 / tree.scale;
-    std::deque<Pending> queue;
-    queue.push_back({root, 0, cell_of(tree, root)});
-    while (!queue.empty()) {
-        Pending p = std::move(queue.front());
-        queue.pop_front();
+    LevelWalk walk(tree, root);
+    Pending p;
+    while (walk.next(p)) {
         const Node& n = tree.nodes[p.index];
         if (n.is_leaf()) continue;
         if (out.node.size() == max_polygons) {
@@ -164,26 +182,20 @@ SplitPolygons split_polygons(const Tree& tree, int max_depth, uint32_t root, siz
             world_plane(tree, p.index, plane);
             out.planes.insert(out.planes.end(), plane, plane + 4);
         }
-        if (p.depth < max_depth) {
-            queue.push_back({below_child(p.index), p.depth + 1, std::move(below)});
-            queue.push_back({above_child(n), p.depth + 1, std::move(above)});
-        }
+        if (p.depth < max_depth) walk.push_children(p, std::move(below), std::move(above));
     }
     return out;
 }
 
 NodeCells node_cells(const Tree& tree, int max_depth, uint32_t root, size_t max_cells) {
-    check_root(tree, root);
     NodeCells out;
     const double inv_scale = 1.0 / tree.scale;
-    std::deque<Pending> queue;
-    queue.push_back({root, 0, cell_of(tree, root)});
-    while (!queue.empty()) {
-        Pending p = std::move(queue.front());
-        queue.pop_front();
+    LevelWalk walk(tree, root);
+    Pending p;
+    while (walk.next(p)) {
         const Node& n = tree.nodes[p.index];
         if (!n.is_leaf() && p.depth != max_depth) {
-            queue_children(tree, p, queue);
+            walk.split_and_push(p);
             continue;
         }
         if (out.node.size() == max_cells) {
