@@ -164,6 +164,9 @@ def test_split_polygons_lie_in_their_plane_inside_their_cell(scene, method):
         n, d = plane[node][:3], plane[node][3]
         assert np.abs(poly @ n - d).max() <= tol * np.linalg.norm(n), (node, poly)
         assert farthest_outside(poly, levels[depth_of[node]][node]).max() <= tol
+        # Convex with its vertices in order around it, so its fan is its area.
+        turns = np.cross(np.roll(poly, -1, 0) - poly, np.roll(poly, -2, 0) - np.roll(poly, -1, 0)) @ n
+        assert (turns >= -tol * tol).all() or (turns <= tol * tol).all(), node
     # The fan triangles index the polygons' own vertices.
     assert out["triangles"].max() < len(v)
     assert len(out["triangles"]) == int((np.diff(off) - 2).sum())
@@ -196,6 +199,15 @@ def test_split_polygons_are_cut_level_by_level():
     assert not full["cut"]
     np.testing.assert_array_equal(out["node"][:len(full["node"])], full["node"])
     assert not tree.split_polygons(10, max_polygons=10**7)["cut"]
+
+
+def test_index_arrays_for_gpu_batches():
+    from bsplab.polygons import edge_pairs, fan_triangles
+    np.testing.assert_array_equal(fan_triangles([0, 4, 7]), [[0, 1, 2], [0, 2, 3], [4, 5, 6]])
+    np.testing.assert_array_equal(edge_pairs([0, 3, 5]), [[0, 1], [1, 2], [2, 0], [3, 4], [4, 3]])
+    assert fan_triangles([0]).shape == (0, 3)
+    with pytest.raises(ValueError, match="offsets must be"):
+        fan_triangles([3, 1])
 
 
 # --- leaf_cells and node_at -------------------------------------------------
