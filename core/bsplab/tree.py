@@ -4,12 +4,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _core, checks
+from . import _core, checks, polygons
 from . import method_table as _methods
 
 # The per-ray counters intersect() returns unless asked for hits only, in
 # the core's argument order.
 COUNTERS = ("steps", "general_steps", "tests", "culled")
+
+# The node kinds of the "kind" arrays (split_polygons, leaf_cells,
+# trace_path), by code: the core's NodeKind.
+KINDS = ("x", "y", "z", "leaf", "general")
+# What trace_path's "test_result" codes mean: tested and missed (or no closer
+# than the hit so far), tested and the closest hit so far, skipped by leaf
+# culling, skipped because this ray tested the triangle in an earlier leaf.
+TEST_RESULTS = ("miss", "hit", "culled", "seen")
+# How many polygons / cells the drawing queries return unless told: about
+# what a viewport overlay draws at interactive rates.
+DRAWABLE = 100_000
 
 
 class Tree:
@@ -88,10 +99,94 @@ class Tree:
                         checks.threads(threads), bool(cull), progress, bool(packets))
         return out
 
+    def split_polygons(self, max_depth: int, root=None, max_polygons: int = DRAWABLE) -> dict:
+        """The split plane of every interior node at most `max_depth` levels
+        below `root` (a node index; None: the whole tree), clipped to the
+        node's cell: a convex polygon in world units, level by level.
+        Returns "vertices" (V, 3) float32 and "offsets" (P + 1,) (polygon i
+        is vertices[offsets[i]:offsets[i+1]]), "triangles" (fan indices into
+        vertices, for a filled batch), and per polygon "node", "depth" (0 at
+        `root`), "kind" (codes of KINDS), "plane" (n, d of n.x = d). "cut"
+        is True when `max_polygons` stopped the walk (the shallow levels are
+        then whole). A node splitting a flat cell (zero thickness, e.g. a
+        wall's own slab) has no polygon: its plane meets the cell in a
+        segment."""
+        depth = checks.number(max_depth, "max_depth", low=0, integer=True)
+        limit = checks.number(max_polygons, "max_polygons", low=0, integer=True)
+        out = _core.split_polygons(self._tree, depth, self._root(root), limit)
+        out["triangles"] = polygons.fan_triangles(out["offsets"])
+        return out
+
+    def leaf_cells(self, max_depth=None, root=None, max_cells: int = DRAWABLE) -> dict:
+        """The cells of the leaves under `root` (None: the whole tree) - and,
+        with `max_depth`, of the nodes at that depth below `root` instead of
+        their leaves: cells that together tile root's cell. Each cell is a
+        closed convex polyhedron: its faces are polygons cell_offsets[i] ..
+        cell_offsets[i+1] of "vertices"/"offsets" (as in split_polygons),
+        "edges" (E, 2) their outlines for a wireframe batch; per cell
+        "node", "depth", "kind" (KINDS: "leaf", or the kind of a node cut
+        off by max_depth). "cut": `max_cells` stopped the walk."""
+        depth = -1 if max_depth is None else checks.number(max_depth, "max_depth", low=0,
+                                                            integer=True)
+        limit = checks.number(max_cells, "max_cells", low=0, integer=True)
+        out = _core.node_cells(self._tree, depth, self._root(root), limit)
+        out["edges"] = polygons.edge_pairs(out["offsets"])
+        return out
+
+    def node_at(self, point, max_depth=None):
+        """(node index, depth) of the leaf - or of the node `max_depth`
+        levels deep - whose cell holds the world point, e.g. the 3D cursor;
+        None when the point is outside the tree's box. A point on a split
+        plane belongs to the cell above it (below is n.x < d)."""
+        p = _finite_vector(point, "point")
+        depth = -1 if max_depth is None else checks.number(max_depth, "max_depth", low=0,
+                                                            integer=True)
+        node, at_depth = _core.node_at(self._tree, p, depth)
+        return None if node < 0 else (node, at_depth)
+
+    def trace_path(self, origin, direction, tmin=0.0, tmax=np.inf, *, cull=False) -> dict:
+        """One ray's walk through the tree, as intersect() traces it: the same
+        hit bit for bit ("t", "prim", "u", "v") and counts ("steps",
+        "general_steps", "tests", "culled"). Per visited node, in visit
+        order: "node", "depth", "kind" (KINDS), "t_range" (the ray's
+        [t0, t1] in its cell), "plane" (n, d; NaN for leaves). Per triangle
+        reference of the visited leaves: "test_step" (its leaf's row above),
+        "test_prim", "test_result" (codes of TEST_RESULTS), "test_t" (the
+        distance of a hit, else NaN)."""
+        if not isinstance(cull, (bool, np.bool_)):
+            raise TypeError(f"cull must be True or False, got {cull!r}")
+        o = _finite_vector(origin, "origin")
+        d = _finite_vector(direction, "direction")
+        if not d.any():
+            raise ValueError("direction must not be zero")
+        lo = float(checks.ray_range(tmin, "tmin", 1, default=0.0)[0])
+        hi = float(checks.ray_range(tmax, "tmax", 1, default=np.inf)[0])
+        return _core.trace_path(self._tree, o, d, lo, hi, bool(cull))
+
+    def _root(self, root) -> int:
+        if root is None:
+            return 0
+        n = self._tree.stats()["nodes"]
+        return checks.number(root, "root", low=0, high=n - 1, integer=True)
+
     def __repr__(self) -> str:
         s = self._tree.stats()
         return (f"<bsplab.Tree {self.method}: {s['triangles']} triangles, {s['nodes']} nodes, "
                 f"{s['bytes'] / 2**20:.1f} MiB>")
+
+
+def _finite_vector(value, name: str) -> np.ndarray:
+    """Three finite float32 coordinates, as the core traces them."""
+    try:
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be three numbers (x, y, z)") from None
+    if v.shape != (3,):
+        raise ValueError(f"{name} must be three numbers (x, y, z), got shape {v.shape}")
+    f = v.astype(np.float32)
+    if not np.isfinite(f).all():
+        raise ValueError(f"{name} must be finite (in float32), got {tuple(float(x) for x in v)}")
+    return f
 
 
 def core_options(method, opts: dict):

@@ -19,7 +19,9 @@
 #include "kd_build.hpp"
 #include "memory.hpp"
 #include "registry.hpp"
+#include "trace_path.hpp"
 #include "traverse.hpp"
+#include "tree_geometry.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -92,6 +94,101 @@ void intersect(const bsp::Tree& tree, Vec3Array origins, Vec3Array directions, F
         bsp::intersect_packets(tree, rays, hits, threads, progress);
     else
         bsp::intersect(tree, rays, hits, threads, cull, progress);
+}
+
+// A vector handed to numpy without a copy: the array owns it from here on.
+template <class T>
+nb::ndarray<nb::numpy, T> owned_array(std::vector<T>&& v, size_t columns = 1) {
+    auto* owner = new std::vector<T>(std::move(v));
+    nb::capsule free_it(owner, [](void* p) noexcept { delete static_cast<std::vector<T>*>(p); });
+    const size_t rows = owner->size() / columns;
+    if (columns == 1) return nb::ndarray<nb::numpy, T>(owner->data(), {rows}, free_it);
+    return nb::ndarray<nb::numpy, T>(owner->data(), {rows, columns}, free_it);
+}
+
+void put_polygons(nb::dict& d, bsp::PolygonSoup&& p) {
+    d["vertices"] = owned_array(std::move(p.vertices), 3);
+    d["offsets"] = owned_array(std::move(p.offsets));
+}
+
+// The per-row columns that split polygons and node cells share.
+template <class Rows>
+void put_node_rows(nb::dict& d, Rows& rows) {
+    d["node"] = owned_array(std::move(rows.node));
+    d["depth"] = owned_array(std::move(rows.depth));
+    d["kind"] = owned_array(std::move(rows.kind));
+    d["cut"] = rows.cut;
+}
+
+nb::dict split_polygons(const bsp::Tree& tree, int max_depth, uint32_t root, size_t max_polygons) {
+    bsp::SplitPolygons s;
+    {
+        nb::gil_scoped_release release;
+        s = bsp::split_polygons(tree, max_depth, root, max_polygons);
+    }
+    nb::dict d;
+    put_polygons(d, std::move(s.polygons));
+    put_node_rows(d, s);
+    d["plane"] = owned_array(std::move(s.planes), 4);
+    return d;
+}
+
+nb::dict node_cells(const bsp::Tree& tree, int max_depth, uint32_t root, size_t max_cells) {
+    bsp::NodeCells c;
+    {
+        nb::gil_scoped_release release;
+        c = bsp::node_cells(tree, max_depth, root, max_cells);
+    }
+    nb::dict d;
+    put_polygons(d, std::move(c.faces));
+    d["cell_offsets"] = owned_array(std::move(c.cell_offsets));
+    put_node_rows(d, c);
+    return d;
+}
+
+// The recorded walk as columns: one row per visited node, one per test.
+nb::dict trace_path(const bsp::Tree& tree, std::array<float, 3> o, std::array<float, 3> dir,
+                    float tmin, float tmax, bool cull) {
+    const bsp::TracePath p = bsp::trace_path(tree, o.data(), dir.data(), tmin, tmax, cull);
+    const size_t n = p.steps.size(), m = p.tests.size();
+    std::vector<uint32_t> node(n), test_step(m), test_prim(m);
+    std::vector<int32_t> depth(n);
+    std::vector<uint8_t> kind(n), result(m);
+    std::vector<double> t_range(2 * n), plane(4 * n, std::nan(""));
+    std::vector<float> test_t(m);
+    for (size_t i = 0; i < n; ++i) {
+        node[i] = p.steps[i].node;
+        depth[i] = p.steps[i].depth;
+        kind[i] = p.steps[i].kind;
+        t_range[2 * i] = p.steps[i].t0;
+        t_range[2 * i + 1] = p.steps[i].t1;
+        bsp::world_plane(tree, node[i], &plane[4 * i]);
+    }
+    for (size_t i = 0; i < m; ++i) {
+        test_step[i] = p.tests[i].step;
+        test_prim[i] = p.tests[i].prim;
+        result[i] = uint8_t(p.tests[i].result);
+        test_t[i] = p.tests[i].t;
+    }
+    nb::dict d;
+    d["node"] = owned_array(std::move(node));
+    d["depth"] = owned_array(std::move(depth));
+    d["kind"] = owned_array(std::move(kind));
+    d["t_range"] = owned_array(std::move(t_range), 2);
+    d["plane"] = owned_array(std::move(plane), 4);
+    d["test_step"] = owned_array(std::move(test_step));
+    d["test_prim"] = owned_array(std::move(test_prim));
+    d["test_result"] = owned_array(std::move(result));
+    d["test_t"] = owned_array(std::move(test_t));
+    d["t"] = p.t;
+    d["prim"] = p.prim;
+    d["u"] = p.u;
+    d["v"] = p.v;
+    d["steps"] = p.n_steps;
+    d["general_steps"] = p.n_general_steps;
+    d["tests"] = p.n_tests;
+    d["culled"] = p.n_culled;
+    return d;
 }
 
 nb::dict stats(const bsp::Tree& tree) {
@@ -355,4 +452,15 @@ NB_MODULE(_core, m) {
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(), "tests"_a.none(),
           "culled"_a.none(),
           "threads"_a, "cull"_a, "progress"_a.none(), "packets"_a = false);
+    m.def("split_polygons", &split_polygons, "tree"_a, "max_depth"_a, "root"_a, "max_polygons"_a);
+    m.def("node_cells", &node_cells, "tree"_a, "max_depth"_a, "root"_a, "max_cells"_a);
+    m.def(
+        "node_at",
+        [](const bsp::Tree& tree, std::array<double, 3> p, int max_depth) {
+            const bsp::NodeAt at = bsp::node_at(tree, p.data(), max_depth);
+            return nb::make_tuple(at.node, at.depth);
+        },
+        "tree"_a, "point"_a, "max_depth"_a);
+    m.def("trace_path", &trace_path, "tree"_a, "origin"_a, "direction"_a, "tmin"_a, "tmax"_a,
+          "cull"_a);
 }
