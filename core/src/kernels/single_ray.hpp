@@ -351,7 +351,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
             // while a branch lets the processor load ahead, rightly most of
             // the time. A branchless step - the far entry always written,
             // the stack top advanced by the "both" case, next node and t1
-            // by bit masks - traced primary rays at 0.3-0.5 of this speed
+            // by bit masks - traced primary rays at 0.2-0.4 of this speed
             // and random rays at 0.9-1.0; docs/architecture.md):
             //   crossed before this cell (or behind the origin): the exit
             //     child only, over the same [t0, t1];
