@@ -141,3 +141,25 @@ def test_the_core_rejects_some_counter_arrays_without_the_others(room):
     with pytest.raises(ValueError, match="all four counter arrays or none"):
         bsplab._core.intersect(tree._tree, o, d, lo, hi, f[0], prim, f[1], f[2],
                                steps, None, None, None, 1, False, None)
+
+
+@pytest.mark.parametrize("scene_id", SCENES)
+def test_both_stepping_loops_give_the_counting_paths_hits(scene_id):
+    """The hits-only path picks its loop per range of rays: camera rays in
+    pixel order are coherent (the plain loop), random rays are not (the loop
+    that prefetches the child above every kd node; single_ray.hpp,
+    ray_coherence.hpp). Each, and a batch of both halves split between two
+    threads, must give the counting path's hits."""
+    from bsplab import workloads
+    tris = load_scene(scene_id)
+    tree = bsplab.build(tris, method="kd")
+    co, cd = workloads.primary_rays(tris, 40, 30)
+    ro, rd = workloads.random_rays(tris, 1200)
+    batches = {"camera": (co, cd), "random": (ro, rd),
+               "camera+random": (np.concatenate([co, ro]), np.concatenate([cd, rd]))}
+    for name, (o, d) in batches.items():
+        counted = tree.intersect(o, d, threads=1)
+        assert (counted["prim"] >= 0).any(), name
+        for threads in (1, 2):
+            assert_same_hits(counted, tree.intersect(o, d, threads=threads, counters=False),
+                             f"{scene_id} {name} threads={threads}")

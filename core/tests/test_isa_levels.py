@@ -57,6 +57,8 @@ def cases():
         o, d, tmax = (np.concatenate(x) for x in zip(*parts))
         po, pd = workloads.primary_rays(tris, 48, 40)
         to, td = workloads.primary_rays(tris, 48, 40, tiles=True)
+        # Random rays: the hits-only path's loop for incoherent rays.
+        ro, rd = workloads.random_rays(tris, 600)
         for method in ("kd", "rbsp", "bsp_wn+kd", "bsp_cn", "bsp_ize+kd"):
             tree = bsplab.build(tris, method=method)
             for cull in (False, True):
@@ -66,6 +68,8 @@ def cases():
                                                             counters=counters, threads=1)
                     yield tag + "/primary", tree.intersect(po, pd, cull=cull,
                                                            counters=counters, threads=1)
+                    yield tag + "/random", tree.intersect(ro, rd, cull=cull,
+                                                          counters=counters, threads=1)
             # Packets: each level's own width (4, 8, 16 lanes), the same hits.
             tag = f"{scene}/{method}/packets"
             yield tag + "/families", tree.intersect(o, d, tmax=tmax, counters=False,
