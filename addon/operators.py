@@ -13,11 +13,11 @@ import traceback
 
 import bpy
 
-from . import backend, camera, extract, preview, sweep, tree_cache
+from . import backend, camera, extract, legend, preview, sweep, tree_cache
 # The worker side (bpy-free, tested without Blender); re-exported because the
 # operators and the Blender tests name them here.
 from .jobs import (Job, JobInput, UserError, check_result, error_message,  # noqa: F401
-                   foreign_embree_library, make_camera)
+                   failure_report, foreign_embree_library, make_camera)
 
 
 # The one job in flight, if any; the panel reads its progress.
@@ -139,7 +139,10 @@ def read_sweep(context, core):
 
 
 def apply_result(scene, result):
-    preview.write_preview(result["image"])
+    render = result["stats"]["render"]
+    # A heat map gets its colour bar (0 .. the largest count, and the unit).
+    preview.write_preview(legend.with_heat_bar(result["image"], render["mode"], render,
+                                               backend.heat_ramp()))
     scene.bsplab.stats_json = json.dumps(result["stats"])
 
 
@@ -216,7 +219,11 @@ class JobOperator:
 
     def _finish(self, context, scene, job):
         if job.error is not None:
-            return self._fail(error_message(job.core, job.error))
+            level, message = failure_report(job)
+            if level != 'ERROR':
+                self.report({level}, message)
+                return {'CANCELLED'}
+            return self._fail(message)
         return self.apply(context, scene, job)
 
     def execute(self, context):
