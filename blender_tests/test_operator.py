@@ -80,7 +80,16 @@ def test_render_modes(addon, core, test_scene, mode):
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
     _, expected = core_render_of_scene(core, scene, 40, 30, mode)
     image = bpy.data.images[addon.preview.IMAGE_NAME]
-    assert np.allclose(utils.image_pixels_top_down(image), expected, atol=1e-6)
+    pixels = utils.image_pixels_top_down(image)
+    # The render at the top left; a heat map has its colour bar below it.
+    assert np.allclose(pixels[:30, :40], expected, atol=1e-6)
+    heat = mode.startswith("heat")
+    assert (pixels.shape[0] > 30) is heat
+    if heat:
+        ramp = addon.backend.heat_ramp()
+        strip = pixels[30:, :, :3]
+        for end in (0.0, 1.0):
+            assert np.all(np.abs(strip - ramp(np.float32(end))) < 1e-4, axis=-1).any(), end
 
 
 def test_count_steps_off_renders_in_packets(addon, core, test_scene):
