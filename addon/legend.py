@@ -90,14 +90,14 @@ def with_heat_bar(image, mode, render_stats, ramp):
     return out
 
 
+SAMPLE = 14  # length of the line sample beside each name
+
+
 def legend_size(names, scale=1):
     """(width, height) of the legend box of `names`."""
     pad = PAD * scale
     text_w = max((font.text_size(n, scale)[0] for n in names), default=0)
     return 3 * pad + SAMPLE * scale + text_w, pad + len(names) * font.LINE_H * scale + pad
-
-
-SAMPLE = 14  # length of the line sample beside each name
 
 
 def draw_legend(img, x, y, entries, scale=1):

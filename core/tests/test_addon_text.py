@@ -174,7 +174,7 @@ def test_sweep_plot_has_axes_ticks_title_and_a_legend_in_each_colour():
     colours = dict(sweep.COLOURS)
     # The legend: each method's name in its colour, in order, right of the plot.
     entries = [(m["name"], colours[m["colour"]]) for m in table["methods"]]
-    lw, lh = legend.legend_size([n for n, _ in entries])
+    lw, _ = legend.legend_size([n for n, _ in entries])
     lx, ly = w - sweep.MARGIN_RIGHT - lw, sweep.MARGIN_TOP
     for i, (name, rgb) in enumerate(entries):
         tx = lx + 2 * legend.PAD + legend.SAMPLE
@@ -198,15 +198,10 @@ def test_tick_step():
     assert [sweep._tick_step(s, 8) for s in (5, 8, 9, 30, 70, 200)] == [1, 1, 2, 5, 10, 50]
 
 
-class _Stopped(Exception):
-    pass
-
-
 @pytest.mark.parametrize("job_class,words", [(jobs.Job, "Build & Render cancelled"),
                                              (sweep.SweepJob, "Sweep K cancelled")])
 def test_a_cancel_is_reported_as_information(job_class, words):
-    job = job_class.__new__(job_class)
-    job.core = bsplab
+    job = job_class(bsplab, None)  # never started: only its report is read
     job.error = bsplab.Cancelled("cancelled")
     level, message = jobs.failure_report(job)
     assert level == 'INFO' and words in message
