@@ -138,11 +138,22 @@ def read_sweep(context, core):
 # Main thread: apply the result
 
 
-def apply_result(scene, result):
+def preview_image(result):
+    """The render, and for a heat map its colour bar (0 .. the largest count,
+    and the unit). A core older than the add-on may lack the maximum (the
+    legacy add-on runs on a separately installed core): then the bar is left
+    out rather than the render lost."""
     render = result["stats"]["render"]
-    # A heat map gets its colour bar (0 .. the largest count, and the unit).
-    preview.write_preview(legend.with_heat_bar(result["image"], render["mode"], render,
-                                               backend.heat_ramp()))
+    try:
+        return legend.with_heat_bar(result["image"], render["mode"], render,
+                                    backend.heat_ramp())
+    except ValueError as ex:
+        print("BSP Lab: preview without its colour bar:", ex)
+        return result["image"]
+
+
+def apply_result(scene, result):
+    preview.write_preview(preview_image(result))
     scene.bsplab.stats_json = json.dumps(result["stats"])
 
 

@@ -248,3 +248,13 @@ def test_method_change_loads_its_defaults(addon, core, empty_scene):
         for name, value in info.get("defaults", {}).items():
             if hasattr(settings, name):
                 assert getattr(settings, name) == pytest.approx(value), (method, name)
+
+
+def test_heat_preview_without_the_maximum_keeps_the_render(addon, core, test_scene):
+    """A core that does not report the counter's maximum: no bar, the render kept."""
+    ops = addon.operators
+    image = np.random.default_rng(2).random((6, 8, 4)).astype(np.float32)
+    result = {"image": image, "stats": {"render": {"mode": "heat_culled"}}}
+    assert ops.preview_image(result) is image
+    result["stats"]["render"]["max_culled"] = 9
+    assert ops.preview_image(result).shape[0] > 6
