@@ -46,6 +46,13 @@ def blender_module(name):
         raise CoreMissing(MISSING_MESSAGE.format(ex)) from ex
 
 
+def heat_ramp():
+    """The core's colour ramp of the heat maps (`bsplab.render.heat_ramp`):
+    the preview's colour bar must show exactly the colours of the image."""
+    import_core()
+    return importlib.import_module(CORE_MODULE + ".render").heat_ramp
+
+
 def core_or_none():
     try:
         return import_core()

@@ -28,6 +28,8 @@ class WorkerJob:
     or `error` on the main thread."""
 
     title = "Working"
+    # Reported (as information, not an error) when the user cancelled the job.
+    cancelled_message = "BSP Lab: cancelled"
 
     def __init__(self, core, inp):
         self.core = core
@@ -166,6 +168,7 @@ class Job(WorkerJob):
     """
 
     title = "Building & Rendering"
+    cancelled_message = "BSP Lab: Build & Render cancelled; the previous preview is unchanged"
 
     def __init__(self, core, inp, cache=None):
         super().__init__(core, inp)
@@ -268,6 +271,14 @@ def error_message(core, ex):
         # The core's checks: NaN/inf coordinates, options out of range.
         return "BSP Lab cannot build the tree: {}".format(ex)
     return "BSP Lab failed: {}: {}".format(type(ex).__name__, ex)
+
+
+def failure_report(job):
+    """(report level, message) of a job that ended with an error. A cancel is
+    what the user asked for: information, not a red error."""
+    if job.core is not None and isinstance(job.error, job.core.Cancelled):
+        return 'INFO', job.cancelled_message
+    return 'ERROR', error_message(job.core, job.error)
 
 
 def check_result(result):

@@ -13,11 +13,11 @@ import traceback
 
 import bpy
 
-from . import backend, camera, extract, preview, sweep, tree_cache
+from . import backend, camera, extract, legend, preview, sweep, tree_cache
 # The worker side (bpy-free, tested without Blender); re-exported because the
 # operators and the Blender tests name them here.
 from .jobs import (Job, JobInput, UserError, check_result, error_message,  # noqa: F401
-                   foreign_embree_library, make_camera)
+                   failure_report, foreign_embree_library, make_camera)
 
 
 # The one job in flight, if any; the panel reads its progress.
@@ -138,8 +138,22 @@ def read_sweep(context, core):
 # Main thread: apply the result
 
 
+def preview_image(result):
+    """The render, and for a heat map its colour bar (0 .. the largest count,
+    and the unit). A core older than the add-on may lack the maximum (the
+    legacy add-on runs on a separately installed core): then the bar is left
+    out rather than the render lost."""
+    render = result["stats"]["render"]
+    try:
+        return legend.with_heat_bar(result["image"], render["mode"], render,
+                                    backend.heat_ramp())
+    except ValueError as ex:
+        print("BSP Lab: preview without its colour bar:", ex)
+        return result["image"]
+
+
 def apply_result(scene, result):
-    preview.write_preview(result["image"])
+    preview.write_preview(preview_image(result))
     scene.bsplab.stats_json = json.dumps(result["stats"])
 
 
@@ -216,7 +230,11 @@ class JobOperator:
 
     def _finish(self, context, scene, job):
         if job.error is not None:
-            return self._fail(error_message(job.core, job.error))
+            level, message = failure_report(job)
+            if level != 'ERROR':
+                self.report({level}, message)
+                return {'CANCELLED'}
+            return self._fail(message)
         return self.apply(context, scene, job)
 
     def execute(self, context):

@@ -29,6 +29,19 @@ def assert_fails_cleanly(addon, scene, message):
     return str(excinfo.value)
 
 
+def assert_cancelled_quietly(addon, scene, message, capfd):
+    """A cancel is what the user asked for: an INFO report (no RuntimeError,
+    which bpy.ops raises for an ERROR report) and the scene left as it was."""
+    with_previous_result(addon, scene)
+    before = utils.scene_snapshot(scene)
+    assert bpy.ops.bsplab.build_render() == {'CANCELLED'}
+    assert utils.scene_snapshot(scene) == before
+    assert bpy.context.window_manager.bsplab_job.is_running is False
+    out, err = capfd.readouterr()
+    assert message in out + err
+    assert "Error" not in out + err
+
+
 def test_no_camera(addon, core, test_scene):
     test_scene["scene"].camera = None
     assert_fails_cleanly(addon, test_scene["scene"], "The scene has no active camera")
@@ -70,7 +83,7 @@ def test_nothing_in_view(addon, core, test_scene):
     assert_fails_cleanly(addon, test_scene["scene"], "No mesh in the camera's view")
 
 
-def test_cancelled(addon, core, test_scene, monkeypatch):
+def test_cancelled(addon, core, test_scene, monkeypatch, capfd):
     """Esc half-way: the core raises Cancelled out of the worker."""
     original_run = addon.operators.Job.run
 
@@ -79,10 +92,10 @@ def test_cancelled(addon, core, test_scene, monkeypatch):
         original_run(job)
 
     monkeypatch.setattr(addon.operators.Job, "run", cancelled_run)
-    assert_fails_cleanly(addon, test_scene["scene"], "Build & Render cancelled")
+    assert_cancelled_quietly(addon, test_scene["scene"], "Build & Render cancelled", capfd)
 
 
-def test_cancelled_during_build(addon, core, test_scene, monkeypatch):
+def test_cancelled_during_build(addon, core, test_scene, monkeypatch, capfd):
     """The core's own cancellation: its progress object cancelled mid-build."""
     real_build = core.build
 
@@ -91,7 +104,7 @@ def test_cancelled_during_build(addon, core, test_scene, monkeypatch):
         return real_build(*args, progress=progress, **kwargs)
 
     monkeypatch.setattr(core, "build", build_then_cancel)
-    assert_fails_cleanly(addon, test_scene["scene"], "Build & Render cancelled")
+    assert_cancelled_quietly(addon, test_scene["scene"], "Build & Render cancelled", capfd)
 
 
 def test_core_missing(addon, test_scene, monkeypatch):

@@ -80,7 +80,16 @@ def test_render_modes(addon, core, test_scene, mode):
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
     _, expected = core_render_of_scene(core, scene, 40, 30, mode)
     image = bpy.data.images[addon.preview.IMAGE_NAME]
-    assert np.allclose(utils.image_pixels_top_down(image), expected, atol=1e-6)
+    pixels = utils.image_pixels_top_down(image)
+    # The render at the top left; a heat map has its colour bar below it.
+    assert np.allclose(pixels[:30, :40], expected, atol=1e-6)
+    heat = mode.startswith("heat")
+    assert (pixels.shape[0] > 30) is heat
+    if heat:
+        ramp = addon.backend.heat_ramp()
+        strip = pixels[30:, :, :3]
+        for end in (0.0, 1.0):
+            assert np.all(np.abs(strip - ramp(np.float32(end))) < 1e-4, axis=-1).any(), end
 
 
 def test_count_steps_off_renders_in_packets(addon, core, test_scene):
@@ -239,3 +248,13 @@ def test_method_change_loads_its_defaults(addon, core, empty_scene):
         for name, value in info.get("defaults", {}).items():
             if hasattr(settings, name):
                 assert getattr(settings, name) == pytest.approx(value), (method, name)
+
+
+def test_heat_preview_without_the_maximum_keeps_the_render(addon, core, test_scene):
+    """A core that does not report the counter's maximum: no bar, the render kept."""
+    ops = addon.operators
+    image = np.random.default_rng(2).random((6, 8, 4)).astype(np.float32)
+    result = {"image": image, "stats": {"render": {"mode": "heat_culled"}}}
+    assert ops.preview_image(result) is image
+    result["stats"]["render"]["max_culled"] = 9
+    assert ops.preview_image(result).shape[0] > 6

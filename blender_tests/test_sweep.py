@@ -137,3 +137,46 @@ def test_experiment_reads_a_blend_file(addon, core, test_scene, tmp_path, monkey
     with pytest.raises(RuntimeError, match="could not export"):
         (tmp_path / "broken.blend").write_bytes(b"not a blend file")
         io.load_blend(tmp_path / "broken.blend")
+
+
+def test_sweep_plot_has_a_legend_in_each_methods_colour(addon, core, test_scene):
+    scene = test_scene["scene"]
+    set_sweep(scene, k_max=4, repetitions=1)
+    assert bpy.ops.bsplab.sweep_k() == {'FINISHED'}
+    table = scene.bsplab.sweep
+    pixels = utils.image_pixels_top_down(bpy.data.images[addon.sweep.PLOT_NAME])[..., :3]
+    width = addon.sweep.PLOT_SIZE[0]
+    names = [m["name"] for m in table["methods"]]
+    legend_w, legend_h = addon.legend.legend_size(names)
+    x0, y0 = width - addon.sweep.MARGIN_RIGHT - legend_w, addon.sweep.MARGIN_TOP
+    box = pixels[y0:y0 + legend_h, x0:x0 + legend_w]
+    colours = dict(addon.sweep.COLOURS)
+    for m in table["methods"]:
+        rgb = np.array(colours[m["colour"]])
+        ink = np.all(np.abs(box - rgb) < 0.02, axis=-1)
+        # the sample line and the name (at least one glyph column per letter)
+        assert ink.sum() > 10 + 3 * len(m["name"]), m["name"]
+    # The title and the axis labels are dark ink outside the plot area.
+    dark = np.all(pixels < 0.15, axis=-1)
+    assert dark[:addon.sweep.MARGIN_TOP].sum() > 100
+    assert dark[-addon.sweep.MARGIN_BOTTOM + 2:].sum() > 20
+
+
+def test_cancelled_sweep_is_reported_as_information(addon, core, test_scene, monkeypatch,
+                                                     capfd):
+    scene = test_scene["scene"]
+    set_sweep(scene, methods="bsp_wn+kd", k_min=3, k_max=12)
+    scene.bsplab.sweep_json = json.dumps({"methods": [], "previous": True})
+    original_run = addon.sweep.SweepJob.run
+
+    def cancelled_run(job):
+        job.cancel()  # as the modal operator does on Esc
+        original_run(job)
+
+    monkeypatch.setattr(addon.sweep.SweepJob, "run", cancelled_run)
+    # No RuntimeError: bpy.ops raises one only for an ERROR report.
+    assert bpy.ops.bsplab.sweep_k() == {'CANCELLED'}
+    assert json.loads(scene.bsplab.sweep_json)["previous"] is True
+    out, err = capfd.readouterr()
+    assert "Sweep K cancelled" in out + err
+    assert "Error" not in out + err

@@ -119,7 +119,7 @@ def counter_stats(hits: dict | None) -> dict:
     render traced on the hits-only path (not counted)."""
     if hits is None:
         return dict.fromkeys(("mean_steps", "mean_tests", "mean_culled", "mean_general_steps",
-                              "max_steps", "max_tests"))
+                              "max_steps", "max_tests", "max_culled"))
     return {
         "mean_steps": float(hits["steps"].mean()),
         "mean_tests": float(hits["tests"].mean()),
@@ -127,6 +127,8 @@ def counter_stats(hits: dict | None) -> dict:
         "mean_general_steps": float(hits["general_steps"].mean()),
         "max_steps": int(hits["steps"].max()),
         "max_tests": int(hits["tests"].max()),
+        # The heat_culled preview's colour bar runs up to it.
+        "max_culled": int(hits["culled"].max()),
     }
 
 

@@ -94,7 +94,7 @@ def test_render_modes_without_counters_give_the_same_image(room, mode, cull):
     assert fast_stats["counters"] is False and counted_stats["counters"] is True
     assert fast_stats["hits"] == counted_stats["hits"] > 0
     for key in ("mean_steps", "mean_tests", "mean_culled", "mean_general_steps",
-                "max_steps", "max_tests"):
+                "max_steps", "max_tests", "max_culled"):
         assert fast_stats[key] is None, key
     assert counted_stats["mean_steps"] > 0 and counted_stats["max_tests"] > 0
     assert (counted_stats["mean_culled"] > 0) == cull
