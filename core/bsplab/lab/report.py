@@ -456,6 +456,21 @@ def cull_markdown(rows: list[dict], command: str, meta: dict | None = None) -> s
 
 
 def calibration_lines(fit: dict) -> list[str]:
-    """The fitted costs, one per line, as `python -m bsplab calibrate` prints them."""
-    return [f"  {k:18} {v:.3f}" if isinstance(v, float) else f"  {k:18} {v}"
-            for k, v in fit.items()]
+    """The fitted costs, one per line, as `python -m bsplab calibrate` prints
+    them: each value with its 5-95 % range over resampled rounds, then the
+    fit's quality and whether the builders' ratios are stable."""
+    spread = fit.get("spread", {})
+    out = []
+    for key, value in fit.items():
+        if key == "spread":
+            continue
+        if key in spread:
+            lo, hi = spread[key]
+            out.append(f"  {key:18} {value:.3f}   (5-95 %: {lo:.3f} .. {hi:.3f})")
+        elif isinstance(value, bool):
+            out.append(f"  {key:18} {'yes' if value else 'no'}")
+        elif isinstance(value, float):
+            out.append(f"  {key:18} {value:.3f}")
+        else:
+            out.append(f"  {key:18} {value}")
+    return out
