@@ -89,12 +89,18 @@ def _check_costs(costs: dict, source: str) -> None:
                              "finite number")
 
 
-def measured_options(params: tuple[str, ...], given: dict) -> dict:
-    """The measured costs that apply to a method taking `params` (kd takes no
-    general_cost). Options given explicitly would silently win or lose
+def measured_options(method, given: dict) -> dict:
+    """The measured costs as `method`'s build options (a method_table.Method).
+    A ^Kd method prices its axis nodes with traversal_cost and its general
+    nodes with general_cost; a BSP method without ^Kd traverses every node
+    as a general one, so its traversal_cost is the general step; kd takes
+    no general_cost. Options given explicitly would silently win or lose
     against the file, so asking for both is an error."""
     both = sorted(set(given) & set(COST_OPTIONS))
     if both:
         raise ValueError(f"costs='measured' sets {', '.join(both)} from the measured costs "
                          "file; give either costs='measured' or the costs themselves")
-    return {name: value for name, value in read_costs().items() if name in params}
+    measured = read_costs()
+    if method.builder == "bsp" and not method.kd_nodes:
+        measured["traversal_cost"] = measured["general_cost"]
+    return {name: value for name, value in measured.items() if name in method.params}

@@ -206,7 +206,7 @@ def build(triangles, method: str = "kd", *, progress=None, costs=None, **options
     tris = checks.triangles(triangles)
     if checks.costs_choice(costs) == "measured":
         from . import costs as _costs
-        options = {**options, **_costs.measured_options(m.params, options)}
+        options = {**options, **_costs.measured_options(m, options)}
     opts = checks.build_options(m, options)
     progress = checks.progress(progress)
     try:

@@ -72,6 +72,12 @@ def test_the_fit_recovers_known_costs_without_noise():
         assert lo == pytest.approx(fit[key]) and hi == pytest.approx(fit[key])
     assert fit["stable"] is True
     assert fit["samples"] == 3 * 8 and fit["rounds"] == 5
+    # Each workload alone (with its kd-trees) gives the same machine.
+    assert set(fit["by_workload"]) == {"primary", "random"}
+    assert fit["by_workload"]["primary"]["samples"] == 8
+    for part in fit["by_workload"].values():
+        assert part["intersect_per_kd"] == pytest.approx(K_I / K_KD)
+        assert part["general_per_kd"] == pytest.approx(K_GEN / K_KD)
 
 
 def test_the_fit_recovers_known_costs_through_noise_and_reports_its_spread():
@@ -104,6 +110,8 @@ def test_calibration_lines_print_each_cost_with_its_spread():
     lo, hi = fit["spread"]["intersect_per_kd"]
     assert f"{fit['intersect_per_kd']:.3f}" in line and f"{lo:.3f} .. {hi:.3f}" in line
     assert any(re.fullmatch(r"\s+stable\s+(yes|no)", x) for x in lines)
+    primary = fit["by_workload"]["primary"]
+    assert f"  primary: intersect_per_kd {primary['intersect_per_kd']:.3f} (IQR " in lines[-2]
     assert not any("spread" in x for x in lines)
 
 
@@ -131,6 +139,10 @@ def test_written_costs_drive_measured_builds_as_the_explicit_options_would(costs
     assert bsp.node_bytes() == bsplab.build(tris, "bsp_wn+kd", k=4, traversal_cost=1.0,
                                             intersect_cost=2.75,
                                             general_cost=1.25).node_bytes()
+    # Without ^Kd every node of a BSP tree is a general one.
+    plain = bsplab.build(tris, "bsp_wn+", k=4, costs="measured")
+    assert plain.node_bytes() == bsplab.build(tris, "bsp_wn+", k=4, traversal_cost=1.25,
+                                              intersect_cost=2.75).node_bytes()
     # "default" and None leave the options' defaults alone.
     assert bsplab.build(tris, "kd", costs="default").node_bytes() == \
         bsplab.build(tris, "kd").node_bytes()
@@ -184,7 +196,7 @@ def test_the_calibrate_command_prints_the_fit_and_writes_it(tmp_path):
     fit = dict(re.findall(r"^\s+(\w+)\s+(\S+)", r.stdout, re.M))
     assert set(fit) >= {"ns_kd_step", "ns_test", "intersect_per_kd", "general_per_kd",
                         "ns_per_ray", "stable", "r2", "samples", "rounds"}, r.stdout
-    assert re.search(r"intersect_per_kd\s+\S+\s+\(5-95 %: \S+ \.\. \S+\)", r.stdout)
+    assert re.search(r"intersect_per_kd\s+\S+\s+\(IQR \S+ \.\. \S+\)", r.stdout)
     assert int(fit["samples"]) == 2 * 9  # 9 trees besides the kd-tree x 2 workloads
     assert (tmp_path / "out" / "bench" / "calibrate.csv").exists()
     # On a loaded machine two rounds may price a cost at zero or below: then
