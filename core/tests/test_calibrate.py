@@ -8,13 +8,14 @@ import os
 import re
 import subprocess
 import sys
+import tomllib
 
 import numpy as np
 import pytest
 
 import bsplab
 from bsplab import costs, scenes
-from bsplab.lab.benchmarks import fit_costs
+from bsplab.lab.benchmarks import fit_costs, spec_path
 from bsplab.lab.report import calibration_lines
 
 # The machine of the synthetic rows: ns per kd step, general step and test,
@@ -197,7 +198,9 @@ def test_the_calibrate_command_prints_the_fit_and_writes_it(tmp_path):
     assert set(fit) >= {"ns_kd_step", "ns_test", "intersect_per_kd", "general_per_kd",
                         "ns_per_ray", "stable", "r2", "samples", "rounds"}, r.stdout
     assert re.search(r"intersect_per_kd\s+\S+\s+\(IQR \S+ \.\. \S+\)", r.stdout)
-    assert int(fit["samples"]) == 2 * 9  # 9 trees besides the kd-tree x 2 workloads
+    spec = tomllib.loads(spec_path("calibrate").read_text())
+    trees = len(spec["method_variants"]["kd"]) - 1 + len(spec["methods"]) - 1
+    assert int(fit["samples"]) == 2 * trees  # the trees besides the kd-tree x 2 workloads
     assert (tmp_path / "out" / "bench" / "calibrate.csv").exists()
     # On a loaded machine two rounds may price a cost at zero or below: then
     # the command says so and writes nothing.
