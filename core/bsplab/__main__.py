@@ -205,6 +205,17 @@ def cmd_calibrate(args) -> int:
     from bsplab.lab import benchmarks, report
     fit = benchmarks.calibrate(args.scenes, repeats=args.repeats)
     print("\n".join(report.calibration_lines(fit)))
+    if not fit["stable"]:
+        print(f"  the ratios' IQR reaches beyond {benchmarks.STABLE_WITHIN:.0%} of the fit "
+              "(a loaded machine?): more --repeats steady them")
+    if args.write:
+        from bsplab import costs
+        try:
+            path = costs.write_costs(fit)
+        except ValueError as e:
+            print(f"not written: {e}", file=sys.stderr)
+            return 1
+        print(f"written {path} (build(..., costs='measured') uses it)")
     return 0
 
 
@@ -334,7 +345,11 @@ def main(argv=None) -> int:
 
     c = sub.add_parser("calibrate", help="fit the SAH costs to this machine's trace times")
     c.add_argument("--scenes", nargs="+", help="default: spheres room")
-    c.add_argument("--repeats", type=whole(1), help="paired rounds (default 3)")
+    c.add_argument("--repeats", type=whole(1), help="paired rounds (default 9)")
+    c.add_argument("--write", action="store_true",
+                   help="store the fitted costs in this machine's costs file "
+                        "($BSPLAB_COSTS, else ~/.config/bsplab/costs.toml) for "
+                        "build(..., costs='measured')")
     c.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("scenes", help="(re)write the generated scenes as PLY files")

@@ -120,6 +120,14 @@ def _check_choice_k(schema: dict, out: dict) -> None:
                              f"got {out.get('k')}")
 
 
+def costs_choice(value):
+    """`build`'s costs=: None or "default" (the options' costs) or "measured"
+    (this machine's costs file)."""
+    if value not in (None, "default", "measured"):
+        raise ValueError(f"costs must be None, 'default' or 'measured'; got {value!r}")
+    return value
+
+
 def choice(value, name: str, allowed: tuple[str, ...]) -> str:
     if value not in allowed:
         raise ValueError(f"{name} must be one of {', '.join(allowed)}; got {value!r}")

@@ -196,10 +196,17 @@ def core_options(method, opts: dict):
     return _core.options_for(method.name, opts)
 
 
-def build(triangles, method: str = "kd", *, progress=None, **options) -> Tree:
-    """Builds a tree of `method` over (N, 3, 3) triangles or (vertices, indices)."""
+def build(triangles, method: str = "kd", *, progress=None, costs=None, **options) -> Tree:
+    """Builds a tree of `method` over (N, 3, 3) triangles or (vertices, indices).
+
+    costs="measured" takes traversal_cost, intersect_cost and general_cost
+    from this machine's measured costs file (`bsplab.costs`); None (or
+    "default") leaves them to the options and their defaults."""
     m = _methods.get(method)
     tris = checks.triangles(triangles)
+    if checks.costs_choice(costs) == "measured":
+        from . import costs as _costs
+        options = {**options, **_costs.measured_options(m, options)}
     opts = checks.build_options(m, options)
     progress = checks.progress(progress)
     try:

@@ -385,39 +385,6 @@ def test_bench_cull_pairs_culling_on_with_off(tmp_path):
     assert any(r[3] == "intersect_cost 0.3, leaf_boxes clipped" for r in rows)
 
 
-def test_calibration_recovers_known_costs_through_the_kd_pairing():
-    from bsplab.lab.benchmarks import fit_costs
-    rng = np.random.default_rng(3)
-    rows = []
-    for i in range(12):
-        kd, gen, tests = rng.uniform(5, 40), rng.uniform(0, 10), rng.uniform(1, 20)
-        per_ray = (100 + 2 * kd + 5 * gen + 20 * tests) * 1e-9
-        drift = rng.uniform(0.5, 2.0, 3)  # the machine's speed in each round
-        rows.append({"scene": "s", "workload": "w", "rays": "1000",
-                     "steps": str(kd + gen), "general_steps": str(gen), "tests": str(tests),
-                     "trace_s": " ".join(str(per_ray * 1000 * d) for d in drift),
-                     "kd_s": " ".join(str(0.01 * d) for d in drift)})
-    fit = fit_costs(rows)
-    # The drift cancels in the pairing; what is left is exact up to one scale
-    # (the kd-tree's median time), which the ratios do not see.
-    assert fit["intersect_per_kd"] == pytest.approx(10.0)
-    assert fit["general_per_kd"] == pytest.approx(2.5)
-    assert fit["r2"] == pytest.approx(1.0)
-    with pytest.raises(ValueError, match="at least 4 rows"):
-        fit_costs(rows[:3])
-
-
-def test_calibrate_fits_costs_from_the_runner(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "bsplab", "calibrate", "--scenes", "room",
-                        "--repeats", "1"], capture_output=True, text=True, cwd=tmp_path)
-    assert r.returncode == 0, r.stderr
-    fit = dict(re.findall(r"^\s+(\w+)\s+(\S+)$", r.stdout, re.M))
-    assert set(fit) >= {"ns_per_ray", "intersect_per_kd", "general_per_kd", "r2", "samples"}
-    assert int(fit["samples"]) == 2 * 7  # 7 trees x 2 workloads
-    assert math.isfinite(float(fit["intersect_per_kd"]))
-    assert (tmp_path / "out" / "bench" / "calibrate.csv").exists()
-
-
 def test_bench_command_line(tmp_path):
     out = tmp_path / "docs" / "benchmark.md"
     r = subprocess.run([sys.executable, "-m", "bsplab", "bench", "--scenes", "room",

@@ -455,7 +455,32 @@ def cull_markdown(rows: list[dict], command: str, meta: dict | None = None) -> s
     return "\n".join(out) + "\n"
 
 
+def _value_and_spread(fit: dict, key: str) -> str:
+    lo, hi = fit["spread"][key]
+    return f"{key} {fit[key]:.3f} (IQR {lo:.3f} .. {hi:.3f})"
+
+
 def calibration_lines(fit: dict) -> list[str]:
-    """The fitted costs, one per line, as `python -m bsplab calibrate` prints them."""
-    return [f"  {k:18} {v:.3f}" if isinstance(v, float) else f"  {k:18} {v}"
-            for k, v in fit.items()]
+    """The fitted costs, one per line, as `python -m bsplab calibrate` prints
+    them: each value with its interquartile range over resampled rounds, then the
+    fit's quality and whether the builders' ratios are stable."""
+    spread = fit.get("spread", {})
+    out = []
+    for key, value in fit.items():
+        if key == "by_workload":
+            out += [f"  {w}: " + ", ".join(_value_and_spread(f, k) for k in
+                                           ("intersect_per_kd", "general_per_kd", "ns_kd_step"))
+                    + f", r2 {f['r2']:.3f}" for w, f in value.items()]
+            continue
+        if key == "spread":
+            continue
+        if key in spread:
+            lo, hi = spread[key]
+            out.append(f"  {key:18} {value:.3f}   (IQR {lo:.3f} .. {hi:.3f})")
+        elif isinstance(value, bool):
+            out.append(f"  {key:18} {'yes' if value else 'no'}")
+        elif isinstance(value, float):
+            out.append(f"  {key:18} {value:.3f}")
+        else:
+            out.append(f"  {key:18} {value}")
+    return out
