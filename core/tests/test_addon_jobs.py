@@ -7,13 +7,10 @@ generated scene.
 """
 
 import dataclasses
-import importlib
 import json
 import re
-import sys
 import threading
 import types
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,17 +19,7 @@ import bsplab
 from bsplab import scenes
 from bsplab.blender.camera import CameraSpec
 
-ADDON_DIR = Path(__file__).resolve().parents[2] / "addon"
-PACKAGE = "bsplab_addon_without_blender"
-
-
-def _addon_module(name):
-    """addon/<name>.py imported as PACKAGE.<name>; the package's __init__ is not run."""
-    if PACKAGE not in sys.modules:
-        package = types.ModuleType(PACKAGE)
-        package.__path__ = [str(ADDON_DIR)]
-        sys.modules[PACKAGE] = package
-    return importlib.import_module(f"{PACKAGE}.{name}")
+from addon_without_blender import addon_module as _addon_module
 
 
 jobs = _addon_module("jobs")

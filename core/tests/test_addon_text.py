@@ -1,13 +1,8 @@
 """The add-on's text and legends in its images (addon/bitmap_font.py,
 addon/legend.py, the Sweep K plot of addon/sweep.py) and its report of a
 cancelled job, without Blender: the modules touch no bpy and are imported as
-submodules of a package whose path is the addon folder (as in
-test_addon_jobs.py)."""
-
-import importlib
-import sys
-import types
-from pathlib import Path
+submodules of a package whose path is the addon folder
+(addon_without_blender.py)."""
 
 import numpy as np
 import pytest
@@ -15,16 +10,7 @@ import pytest
 import bsplab
 from bsplab.render import heat_ramp
 
-ADDON_DIR = Path(__file__).resolve().parents[2] / "addon"
-PACKAGE = "bsplab_addon_without_blender"
-
-
-def _addon_module(name):
-    if PACKAGE not in sys.modules:
-        package = types.ModuleType(PACKAGE)
-        package.__path__ = [str(ADDON_DIR)]
-        sys.modules[PACKAGE] = package
-    return importlib.import_module(f"{PACKAGE}.{name}")
+from addon_without_blender import addon_module as _addon_module
 
 
 font = _addon_module("bitmap_font")
