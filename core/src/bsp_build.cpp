@@ -286,8 +286,9 @@ private:
         std::sort(ends.begin(), ends.end());
         std::sort(planars.begin(), planars.end());
 
-        const Vec3d ud(u);
-        CellProjection cp(cell, ud);
+        // Per thread, like the position arrays: re-projecting keeps its arrays.
+        thread_local CellProjection cp;
+        cp.project(cell, Vec3d(u));
         const double clo = cp.lo(), chi = cp.hi();
         const bool kd = opt_.kd_nodes && is_ax;
         const double inv_area = 1.0 / area;
@@ -496,9 +497,9 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
     };
 
     const double inv_area = 1.0 / area;
+    CellProjection cp;  // re-projected per plane, its arrays kept
     auto try_plane = [&](const Vec3& u, float d) {
-        const Vec3d ud(u);
-        const CellProjection cp(cell, ud);
+        cp.project(cell, Vec3d(u));
         if (!cp.cuts(double(d))) return;
         int axis;
         const bool is_ax = is_axis(u, axis);

@@ -170,18 +170,20 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
     if (!above.has_face_in(un * -1.0, -d / len, eps)) above.add_cap(un * -1.0, cap2, weld);
 }
 
-CellProjection::CellProjection(const Cell& cell, const Vec3d& u) : cell_(cell), u_(u) {
+void CellProjection::project(const Cell& cell, const Vec3d& u) {
+    cell_ = &cell;
+    u_ = u;
+    breaks_.clear();
+    coef_.clear();  // eval() must not read the previous cell's table
+    faces_.clear();
     const auto& pts = cell.points();
     proj_.resize(pts.size());
     lo_ = INFINITY;
     hi_ = -INFINITY;
-    double magnitude = 0;
     for (size_t i = 0; i < pts.size(); ++i) {
         proj_[i] = dot(u, pts[i]);
         lo_ = std::min(lo_, proj_[i]);
         hi_ = std::max(hi_, proj_[i]);
-        const Vec3d& p = pts[i];
-        magnitude = std::max(magnitude, std::fabs(p.x) + std::fabs(p.y) + std::fabs(p.z));
     }
     // A general plane's face lies off its plane by the rounding of the
     // interpolated vertices (about 1e-14 of the coordinates after dozens of
@@ -190,7 +192,13 @@ CellProjection::CellProjection(const Cell& cell, const Vec3d& u) : cell_(cell), 
     // down to the depth limit. A margin far below a float's resolution
     // (1.2e-7) rules that out. Axis faces are exact (split() puts them on
     // their planes) and need none: a float plane an ulp inside still cuts.
-    slack_ = is_axis_direction(u) ? 0.0 : 1e-9 * magnitude;
+    slack_ = 0.0;
+    if (!is_axis_direction(u)) {
+        double magnitude = 0;
+        for (const Vec3d& p : pts)
+            magnitude = std::max(magnitude, std::fabs(p.x) + std::fabs(p.y) + std::fabs(p.z));
+        slack_ = 1e-9 * magnitude;
+    }
     faces_.reserve(cell.faces().size());
     for (const Cell::Face& f : cell.faces()) {
         FaceInfo fi;
@@ -213,8 +221,8 @@ CellProjection::CellProjection(const Cell& cell, const Vec3d& u) : cell_(cell), 
 
 void CellProjection::areas_at(double t, double& below, double& above) const {
     below = above = 0;
-    const auto& pts = cell_.points();
-    const auto& faces = cell_.faces();
+    const auto& pts = cell_->points();
+    const auto& faces = cell_->faces();
     for (size_t k = 0; k < faces_.size(); ++k) {
         const FaceInfo& f = faces_[k];
         double b;

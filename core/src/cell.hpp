@@ -60,7 +60,12 @@ private:
 // one side cost nothing, only the faces t crosses are clipped.
 class CellProjection {
 public:
-    CellProjection(const Cell& cell, const Vec3d& u);
+    CellProjection() = default;
+    CellProjection(const Cell& cell, const Vec3d& u) { project(cell, u); }
+    // Sees `cell` along u from now on (any earlier table is dropped). One
+    // object re-projected keeps its arrays: a build projects every node's
+    // cell K times, and BSP_IZE once per candidate plane.
+    void project(const Cell& cell, const Vec3d& u);
     double lo() const { return lo_; }
     double hi() const { return hi_; }
     // Whether the plane u.x = t cuts the cell in two: inside its extent by
@@ -84,7 +89,7 @@ private:
         uint32_t first, count;
         bool faces_up;  // its outward normal points along +u
     };
-    const Cell& cell_;
+    const Cell* cell_ = nullptr;
     Vec3d u_;
     double lo_ = 0, hi_ = 0;
     double slack_ = 0;
