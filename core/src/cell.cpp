@@ -133,6 +133,12 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
     extent(n, lo, hi);
     const double eps = 1e-12 * std::max({std::fabs(lo), std::fabs(hi), hi - lo, 1e-30});
     const bool on_axis = is_axis_direction(n);
+    // Each part has at most one face more than the cell, each face at most
+    // one vertex more, and the cap one per face: sized once, no regrowth.
+    for (Cell* part : {&below, &above}) {
+        part->faces_.reserve(faces_.size() + 1);
+        part->pts_.reserve(pts_.size() + 2 * faces_.size());
+    }
     std::vector<Vec3d> cap;
     std::vector<Vec3d> b, a;
     for (const Face& f : faces_) {
@@ -240,15 +246,20 @@ void CellProjection::areas_at(double t, double& below, double& above) const {
             b = 0;
         } else {
             // Clip the face to u.x <= t using the stored projections.
+            // Each vertex's distance is computed once and carried to the
+            // next edge (no modulo per vertex: this loop is the sweep's hot spot).
             ClipBuffer buf;
             size_t m = 0;
+            const double* d = &proj_[f.first];
+            const Vec3d* p = &pts[f.first];
+            double da = d[0] - t;
             for (uint32_t i = 0; i < f.count && m + 2 < ClipBuffer::kCapacity; ++i) {
-                const uint32_t j = (i + 1) % f.count;
-                const double da = proj_[f.first + i] - t, db = proj_[f.first + j] - t;
-                const Vec3d& pa = pts[f.first + i];
-                if (da <= 0) buf.set(m++, pa);
+                const uint32_t j = i + 1 == f.count ? 0 : i + 1;
+                const double db = d[j] - t;
+                if (da <= 0) buf.set(m++, p[i]);
                 if ((da < 0 && db > 0) || (da > 0 && db < 0))
-                    buf.set(m++, pa + (pts[f.first + j] - pa) * (da / (da - db)));
+                    buf.set(m++, p[i] + (p[j] - p[i]) * (da / (da - db)));
+                da = db;
             }
             b = m < 3 ? 0.0 : std::min(f.area, 0.5 * twice_area(faces[k].normal, buf, m));
         }
