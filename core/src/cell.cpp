@@ -206,7 +206,10 @@ void CellProjection::project(const Cell& cell, const Vec3d& u) {
         slack_ = 1e-9 * magnitude;
     }
     faces_.reserve(cell.faces().size());
+    monotone_ = true;
     for (const Cell::Face& f : cell.faces()) {
+        // A clipped face has at most two points per vertex.
+        if (2 * size_t(f.count) + 2 >= ClipBuffer::kCapacity) monotone_ = false;
         FaceInfo fi;
         fi.area = f.area;
         const double c = dot(f.normal, u);

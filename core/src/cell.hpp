@@ -75,6 +75,10 @@ public:
     // simple polytope lies on three faces); tabulating costs twice that.
     size_t breaks_estimate() const { return proj_.size() / 3 + 1; }
     void areas_at(double t, double& below, double& above) const;
+    // Whether the area below t, as computed, never falls as t rises beyond
+    // rounding: true unless a face has so many vertices that its clip
+    // could overflow areas_at's buffer and be cut short.
+    bool areas_monotone() const { return monotone_; }
 
     // Between two consecutive vertex projections both areas are quadratic in
     // t, so three exact evaluations per interval tabulate them (ALGORITHMS.md
@@ -93,6 +97,7 @@ private:
     Vec3d u_;
     double lo_ = 0, hi_ = 0;
     double slack_ = 0;
+    bool monotone_ = true;
     std::vector<double> proj_;    // projection of every face point
     std::vector<FaceInfo> faces_;
     std::vector<double> breaks_;  // sorted distinct projections
