@@ -67,6 +67,8 @@ Cell Cell::from_box(const Box& b) {
 }
 
 void Cell::add_face(const Vec3d& normal, const Vec3d* p, size_t n) {
+    for (size_t i = 0; i < n; ++i)
+        magnitude_ = std::max(magnitude_, std::fabs(p[i].x) + std::fabs(p[i].y) + std::fabs(p[i].z));
     faces_.push_back({normal, uint32_t(pts_.size()), uint32_t(n), 0.5 * twice_area(normal, p, n)});
     pts_.insert(pts_.end(), p, p + n);
 }
@@ -182,31 +184,14 @@ void CellProjection::project(const Cell& cell, const Vec3d& u) {
     breaks_.clear();
     coef_.clear();  // eval() must not read the previous cell's table
     faces_.clear();
+    faces_.reserve(cell.faces().size());
     const auto& pts = cell.points();
     proj_.resize(pts.size());
     lo_ = INFINITY;
     hi_ = -INFINITY;
-    for (size_t i = 0; i < pts.size(); ++i) {
-        proj_[i] = dot(u, pts[i]);
-        lo_ = std::min(lo_, proj_[i]);
-        hi_ = std::max(hi_, proj_[i]);
-    }
-    // A general plane's face lies off its plane by the rounding of the
-    // interpolated vertices (about 1e-14 of the coordinates after dozens of
-    // cuts), so the plane that made it could be a candidate inside the cell
-    // again and cut off an empty sliver, for the empty bonus, at every level
-    // down to the depth limit. A margin far below a float's resolution
-    // (1.2e-7) rules that out. Axis faces are exact (split() puts them on
-    // their planes) and need none: a float plane an ulp inside still cuts.
-    slack_ = 0.0;
-    if (!is_axis_direction(u)) {
-        double magnitude = 0;
-        for (const Vec3d& p : pts)
-            magnitude = std::max(magnitude, std::fabs(p.x) + std::fabs(p.y) + std::fabs(p.z));
-        slack_ = 1e-9 * magnitude;
-    }
-    faces_.reserve(cell.faces().size());
     monotone_ = true;
+    // One pass: the cell's points are its faces' polygons, face after face
+    // (add_face), so the cell's extent and each face's come together.
     for (const Cell::Face& f : cell.faces()) {
         // A clipped face has at most two points per vertex.
         if (2 * size_t(f.count) + 2 >= ClipBuffer::kCapacity) monotone_ = false;
@@ -218,14 +203,26 @@ void CellProjection::project(const Cell& cell, const Vec3d& u) {
         fi.faces_up = c > 0;
         fi.lo = INFINITY;
         fi.hi = -INFINITY;
-        for (uint32_t i = 0; i < f.count; ++i) {
-            fi.lo = std::min(fi.lo, proj_[f.first + i]);
-            fi.hi = std::max(fi.hi, proj_[f.first + i]);
+        for (uint32_t i = f.first; i < f.first + f.count; ++i) {
+            const double x = dot(u, pts[i]);
+            proj_[i] = x;
+            fi.lo = std::min(fi.lo, x);
+            fi.hi = std::max(fi.hi, x);
+            lo_ = std::min(lo_, x);
+            hi_ = std::max(hi_, x);
         }
         fi.first = f.first;
         fi.count = f.count;
         faces_.push_back(fi);
     }
+    // A general plane's face lies off its plane by the rounding of the
+    // interpolated vertices (about 1e-14 of the coordinates after dozens of
+    // cuts), so the plane that made it could be a candidate inside the cell
+    // again and cut off an empty sliver, for the empty bonus, at every level
+    // down to the depth limit. A margin far below a float's resolution
+    // (1.2e-7) rules that out. Axis faces are exact (split() puts them on
+    // their planes) and need none: a float plane an ulp inside still cuts.
+    slack_ = is_axis_direction(u) ? 0.0 : 1e-9 * cell.magnitude();
 }
 
 void CellProjection::areas_at(double t, double& below, double& above) const {

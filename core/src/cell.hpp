@@ -42,12 +42,15 @@ public:
     void extent(const Vec3d& u, double& lo, double& hi) const;
     // Cuts the cell by the plane n.x = d into the parts below and above it.
     void split(const Vec3d& n, double d, Cell& below, Cell& above) const;
+    // The largest |x| + |y| + |z| of its points: the scale of their rounding.
+    double magnitude() const { return magnitude_; }
     const std::vector<Vec3d>& points() const { return pts_; }
     const std::vector<Face>& faces() const { return faces_; }
 
 private:
     std::vector<Vec3d> pts_;  // face polygons, concatenated
     std::vector<Face> faces_;
+    double magnitude_ = 0;  // kept by add_face, the one writer of pts_
     void add_face(const Vec3d& normal, const Vec3d* p, size_t n);
     void add_cap(const Vec3d& normal, std::vector<Vec3d>& p, double eps);
     // Whether a face with this outward normal lies in the plane normal.x = offset.
