@@ -284,11 +284,25 @@ private:
                    res.fallback.cost;
     }
 
+    // Per-thread buffers: sweeps run millions of times on small nodes. The
+    // thread_local is found once per sweep, through this call kept out of
+    // line: in a shared library each use of one is a look-up
+    // (__tls_get_addr), and inlined the compiler repeated it at every
+    // push_back, 6 % of a build.
+    struct SweepScratch {
+        std::vector<float> starts, ends, planars;
+        CellProjection cp;
+    };
+    [[gnu::noinline]] static SweepScratch& sweep_scratch() {
+        thread_local SweepScratch scratch;
+        return scratch;
+    }
+
     SweepResult sweep(const NodeRefs& nr, const Cell& cell, double area, const Vec3& u) const {
         SweepResult res;
         const size_t n = nr.refs.size();
-        // Per-thread buffers: sweeps run millions of times on small nodes.
-        thread_local std::vector<float> starts, ends, planars;
+        SweepScratch& scratch = sweep_scratch();
+        auto& [starts, ends, planars, cp] = scratch;
         starts.clear();
         ends.clear();
         planars.clear();
@@ -308,9 +322,7 @@ private:
         std::sort(ends.begin(), ends.end());
         std::sort(planars.begin(), planars.end());
 
-        // Per thread, like the position arrays: re-projecting keeps its arrays.
-        thread_local CellProjection cp;
-        cp.project(cell, Vec3d(u));
+        cp.project(cell, Vec3d(u));  // re-projected, it keeps its arrays
         const double clo = cp.lo(), chi = cp.hi();
         const bool kd = opt_.kd_nodes && is_ax;
         const double inv_area = 1.0 / area;
