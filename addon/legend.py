@@ -90,7 +90,9 @@ def with_heat_bar(image, mode, render_stats, ramp):
     return out
 
 
-SAMPLE = 14  # length of the line sample beside each name
+SAMPLE = 15  # length of the line sample beside each name: one and a half dashes
+# A dashed line (the Sweep K plot's levels): DASH px drawn of every DASH_PERIOD.
+DASH, DASH_PERIOD = 5, 10
 
 
 def legend_size(names, scale=1):
@@ -102,7 +104,8 @@ def legend_size(names, scale=1):
 
 def draw_legend(img, x, y, entries, scale=1):
     """A framed legend at (x, y) (its top left): one row per (name, rgb, dashed)
-    with a sample line (dashed: a row of dots) and the name, both in its colour."""
+    with a sample line (dashed as the plot's levels: DASH, DASH_PERIOD) and the
+    name, both in its colour."""
     w, h = legend_size([name for name, _, _ in entries], scale)
     pad = PAD * scale
     img[y:y + h, x:x + w, :3] = 1.0
@@ -114,8 +117,8 @@ def draw_legend(img, x, y, entries, scale=1):
         sx = x + pad
         sample = img[mid - scale:mid + scale, sx:sx + SAMPLE * scale, :3]
         if dashed:
-            sample[:, ::4 * scale] = rgb
-            sample[:, 1::4 * scale] = rgb
+            for start in range(0, sample.shape[1], DASH_PERIOD * scale):
+                sample[:, start:start + DASH * scale] = rgb
         else:
             sample[:] = rgb
         font.draw_text(img, name, sx + SAMPLE * scale + pad, top, rgb, scale)
