@@ -114,9 +114,9 @@ def read_tree_b(scene, methods):
     if not compare.enabled:
         return None
     choice = checked_choice(methods, compare, tree="Tree B: ")
-    if "threads" in methods[choice.method].get("params", ()):
-        choice.options["threads"] = scene.bsplab.threads
-    return choice
+    if "threads" not in methods[choice.method].get("params", ()):
+        return choice
+    return TreeChoice(choice.method, dict(choice.options, threads=scene.bsplab.threads))
 
 
 def read_scene(context, core):
@@ -364,7 +364,10 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
             check_result(job.result)
         except UserError as ex:
             return self._fail(str(ex))
-        apply_result(scene, job.result)
+        try:
+            apply_result(scene, job.result)
+        except ValueError as ex:  # an A/B preview too narrow for its split
+            return self._fail("BSP Lab cannot show the preview: {}".format(ex))
         stats = job.result["stats"]
         build = stats["build"]
         built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")

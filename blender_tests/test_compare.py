@@ -194,3 +194,51 @@ def test_turning_b_off_forgets_its_tree(addon, core, test_scene):
     press()
     assert len(addon.operators.kept_tree_cache_b()) == 0
     assert "b" not in scene.bsplab.stats
+
+
+def test_a_heat_split_shares_one_scale(addon, core, test_scene):
+    scene = test_scene["scene"]
+    scene.bsplab.render_mode = "heat_steps"
+    set_b(scene, view="split")
+    press()
+    image = preview_pixels(addon)
+    inp = addon.operators.read_scene(bpy.context, core)
+    cam = addon.operators.make_camera(core, inp.camera)
+    origins, directions = cam.rays(WIDTH, HEIGHT)
+    steps = [core.build(inp.triangles, method=m, **o).intersect(
+        origins, directions, counters=True)["steps"].reshape(HEIGHT, WIDTH)
+        for m, o in ((inp.method, inp.options), (inp.b.method, inp.b.options))]
+    top = max(int(steps[0].max()), int(steps[1].max()))
+    assert int(steps[0].max()) != int(steps[1].max()), "the test needs different maxima"
+    ramp = addon.backend.heat_ramp()
+    start, stop = addon.compare.split_columns(WIDTH)
+    expected_a = ramp(steps[0].astype(np.float32) / top)
+    expected_b = ramp(steps[1].astype(np.float32) / top)
+    np.testing.assert_allclose(image[:HEIGHT, :start, :3], expected_a[:, :start], atol=1e-6)
+    np.testing.assert_allclose(image[:HEIGHT, stop:WIDTH, :3], expected_b[:, stop:], atol=1e-6)
+    assert image.shape[0] > HEIGHT  # one colour bar for both halves
+
+
+def test_b_is_compared_with_embree_too(addon, core, test_scene):
+    scene = test_scene["scene"]
+    scene.bsplab.compare_with_embree = True
+    set_b(scene)
+    press()
+    stats = scene.bsplab.stats
+    assert stats["b"]["embree"]["available"] == stats["embree"]["available"]
+    row = {label: (a, b) for label, a, b, _ in addon.stats.compare_grid(stats)[1]}["x Embree"]
+    if stats["embree"]["available"]:
+        assert row == ("{:.2f}".format(stats["embree"]["time_ratio"]),
+                       "{:.2f}".format(stats["b"]["embree"]["time_ratio"]))
+    else:  # Blender 3.4 declines Embree (a clashing library): no ratio
+        assert row == ("-", "-")
+
+
+def test_a_preview_too_narrow_to_split_is_refused(addon, core, test_scene):
+    scene = test_scene["scene"]
+    # Blender's smallest resolution, 4 x 4, at 75 %: a 3 x 3 preview.
+    scene.render.resolution_x, scene.render.resolution_y = 4, 4
+    scene.bsplab.preview_percentage = 75
+    set_b(scene)
+    with pytest.raises(RuntimeError, match="cannot show the preview: a split needs"):
+        bpy.ops.bsplab.build_render()
