@@ -242,3 +242,14 @@ def test_a_preview_too_narrow_to_split_is_refused(addon, core, test_scene):
     set_b(scene)
     with pytest.raises(RuntimeError, match="cannot show the preview: a split needs"):
         bpy.ops.bsplab.build_render()
+
+
+def test_choosing_b_method_loads_its_defaults_and_leaves_a_alone(addon, core, test_scene):
+    scene = test_scene["scene"]
+    scene.bsplab.k = 7
+    compare = scene.bsplab_compare
+    compare.method = "kd"
+    compare.k = 20
+    compare.method = B_METHOD
+    assert compare.k == core.methods()[B_METHOD]["defaults"]["k"]
+    assert scene.bsplab.k == 7 and scene.bsplab.method == "kd"
