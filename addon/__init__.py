@@ -21,8 +21,8 @@ bl_info = {
 if "bpy" in locals():
     import importlib
     import sys as _sys
-    for _name in ("backend", "extract", "camera", "preview", "stats", "tree_cache", "jobs", "sweep",
-                  "properties", "operators", "ui"):
+    for _name in ("backend", "extract", "camera", "preview", "stats", "compare", "tree_cache",
+                  "jobs", "sweep", "properties", "operators", "ui"):
         _module = _sys.modules.get("{}.{}".format(__name__, _name))
         if _module is not None:
             importlib.reload(_module)
