@@ -8,8 +8,11 @@ with the camera, mode and culling of the first (A). Its preview is one of
   between in a colour no render mode produces;
 - `diff_steps` / `diff_tests`: per pixel B's count minus A's (traversal steps
   or triangle tests of that pixel's camera ray), in diverging colours (blue:
-  B does less, red: B does more, exactly 0: white) on the symmetric range
-  +-max|B - A|, with a colour bar labelled -max / 0 / +max.
+  B does less, red: B does more, exactly 0: white, on a square-root scale)
+  on a symmetric range +-S, with a colour bar labelled -S / 0 / +S. S is the 99th percentile of
+  the non-zero |B - A| (not their maximum: one outlier pixel would wash out
+  the whole map); the few pixels beyond it take the end colours, and the
+  bar's caption says how many.
 
 Pure numpy, no bpy: the job's worker thread hands the images and per-pixel
 counters here, and core/tests/test_addon_compare.py tests the composition
@@ -78,9 +81,19 @@ def diverging(x):
     return (1.0 + np.abs(x) * (end - 1.0)).astype(np.float32)
 
 
+def difference_colours(x):
+    """Colours of differences x in units of the map's range (+-1 at +-S):
+    diverging() of sign(x) sqrt(|x|). Most pixels differ by a step or two
+    while the range is set by the larger differences; the square root keeps
+    the small ones visible, and the bar (diverging_ramp) uses the same map,
+    so a colour still reads off the bar at its value."""
+    x = np.clip(np.asarray(x, dtype=np.float32), -1.0, 1.0)
+    return diverging(np.sign(x) * np.sqrt(np.abs(x)))
+
+
 def diverging_ramp(t):
-    """The diverging map on [0, 1] (0: -max, 0.5: 0, 1: +max), for the bar."""
-    return diverging(2.0 * np.asarray(t, dtype=np.float32) - 1.0)
+    """The difference map on [0, 1] (0: -S, 0.5: 0, 1: +S), for the bar."""
+    return difference_colours(2.0 * np.asarray(t, dtype=np.float32) - 1.0)
 
 
 def difference(a_counts, b_counts):
@@ -90,22 +103,41 @@ def difference(a_counts, b_counts):
     return diff, int(np.abs(diff).max(initial=0))
 
 
+# The share of the differing pixels whose |B - A| the map's range covers.
+RANGE_PERCENTILE = 99.0
+
+
+def difference_scale(diff):
+    """The map's range S: the RANGE_PERCENTILE-th percentile of the non-zero
+    |diff|, rounded up (0 when A and B count the same everywhere)."""
+    nonzero = np.abs(diff[diff != 0])
+    if nonzero.size == 0:
+        return 0
+    return int(np.ceil(np.percentile(nonzero, RANGE_PERCENTILE)))
+
+
 def difference_image(a_counts, b_counts):
-    """(H, W, 4) diverging map of B - A scaled by max |B - A| (all white
-    when A and B count the same everywhere), and that max."""
-    diff, top = difference(a_counts, b_counts)
+    """(H, W, 4) diverging map of B - A on +-S (difference_scale; all white
+    when A and B count the same everywhere), S, and the share of pixels
+    beyond +-S (drawn in the end colours)."""
+    diff, _ = difference(a_counts, b_counts)
+    scale = difference_scale(diff)
     image = np.ones(diff.shape + (4,), np.float32)
-    image[..., :3] = diverging(diff / max(top, 1))
-    return image, top
+    image[..., :3] = difference_colours(diff / max(scale, 1))
+    clipped = float(np.count_nonzero(np.abs(diff) > scale)) / max(diff.size, 1)
+    return image, scale, clipped
 
 
-def with_difference_bar(image, top, counter):
-    """The difference map with its bar below: -max / 0 / +max and the unit."""
+def with_difference_bar(image, scale, counter, clipped=0.0):
+    """The difference map with its bar below: -S / 0 / +S, the unit, and the
+    share of pixels beyond +-S when there are any."""
     caption = "B - A, {}".format(UNITS[counter])
-    if top == 0:
+    if scale == 0:
         caption += ": equal everywhere"
-    return legend.with_colour_bar(image, top, diverging_ramp, caption,
-                                  low="-{}".format(top) if top else "0", middle="0")
+    elif clipped > 0:
+        caption += " ({:.2g} % beyond +-{})".format(100.0 * clipped, scale)
+    return legend.with_colour_bar(image, scale, diverging_ramp, caption,
+                                  low="-{}".format(scale) if scale else "0", middle="0")
 
 
 def heat_split(a_counts, b_counts, mode, ramp):
@@ -138,8 +170,8 @@ def preview(a_image, b_image, counts, mode, view, ramp):
         raise ValueError("unknown comparison view {!r}; views: {}".format(view, ", ".join(VIEWS)))
     counter = VIEWS[view]
     if counter is not None:
-        image, top = difference_image(counts["a"][counter], counts["b"][counter])
-        return with_difference_bar(image, top, counter)
+        image, scale, clipped = difference_image(counts["a"][counter], counts["b"][counter])
+        return with_difference_bar(image, scale, counter, clipped)
     shown = heat_counter(mode)
     if shown is None:
         return split_image(a_image, b_image)

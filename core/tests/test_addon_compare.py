@@ -57,8 +57,8 @@ def test_diverging_is_white_at_zero_and_saturates_at_the_ends():
 def test_difference_map_signs_follow_b_minus_a():
     a = np.array([[3, 5, 7], [1, 1, 9]], np.uint32)
     b = np.array([[3, 9, 2], [1, 0, 9]], np.uint32)
-    image, top = compare.difference_image(a, b)
-    assert top == 5 and image.shape == (2, 3, 4)
+    image, top, clipped = compare.difference_image(a, b)
+    assert top == 5 and clipped == 0 and image.shape == (2, 3, 4)
     diff = b.astype(int) - a.astype(int)
     white = np.all(image[..., :3] == 1.0, axis=-1)
     redder = image[..., 0] > image[..., 2]
@@ -71,8 +71,8 @@ def test_difference_map_signs_follow_b_minus_a():
 
 def test_equal_counts_give_an_all_white_map_and_say_so():
     counts = np.arange(12, dtype=np.uint32).reshape(3, 4)
-    image, top = compare.difference_image(counts, counts.copy())
-    assert top == 0 and np.all(image == 1.0)
+    image, top, clipped = compare.difference_image(counts, counts.copy())
+    assert top == 0 and clipped == 0 and np.all(image == 1.0)
     with_bar = compare.with_difference_bar(image, top, "steps")
     assert with_bar.shape[0] > 3 and with_bar.shape[1] >= 4
     np.testing.assert_array_equal(with_bar[:3, :4], image)
@@ -82,15 +82,44 @@ def test_the_difference_bar_runs_from_minus_max_to_plus_max():
     a = np.zeros((40, 200), np.uint32)
     b = a.copy()
     b[0, 0] = 7
-    image, top = compare.difference_image(a, b)
-    out = compare.with_difference_bar(image, top, "tests")
+    image, top, clipped = compare.difference_image(a, b)
+    out = compare.with_difference_bar(image, top, "tests", clipped)
     strip = out[40:]
     # The bar's row holds both ends of the map and white between them.
     rows = np.where(np.any(np.all(np.isclose(strip[..., :3], compare.MORE, atol=0.02), -1), 1))[0]
     assert rows.size > 0
     bar = strip[rows[0], :, :3]
     assert np.any(np.all(np.isclose(bar, compare.FEWER, atol=0.02), -1))
-    assert np.any(np.all(bar > 0.97, -1))
+    # (near white: on the square-root scale only the bar's very middle is white)
+    assert np.any(np.all(bar > 0.9, -1))
+
+
+def test_one_outlier_does_not_wash_out_the_difference_map():
+    # 999 pixels differ by 2 or -2, one by 50: the range follows the many.
+    a = np.full((10, 100), 10, np.uint32)
+    b = a.copy()
+    b[:5] += 2
+    b[5:] -= 2
+    b[0, 0] = 60
+    image, scale, clipped = compare.difference_image(a, b)
+    assert scale == 2 and clipped == 1 / 1000
+    np.testing.assert_allclose(image[1, 0, :3], compare.MORE, atol=1e-6)   # +2: full colour
+    np.testing.assert_allclose(image[9, 0, :3], compare.FEWER, atol=1e-6)  # -2: full colour
+    np.testing.assert_allclose(image[0, 0, :3], compare.MORE, atol=1e-6)   # +50: clipped to the end
+    assert compare.difference_scale(np.array([0, 0])) == 0
+
+
+def test_the_bar_shows_each_difference_in_the_maps_colour():
+    # A value's colour on the map is the bar's colour at its position.
+    scale = 20
+    values = np.arange(-scale, scale + 1)
+    image, s, _ = compare.difference_image(np.full((1, values.size), scale, np.uint32),
+                                           (values + scale).astype(np.uint32)[None])
+    assert s == scale
+    on_bar = compare.diverging_ramp((values + scale) / (2 * scale))
+    np.testing.assert_allclose(image[0, :, :3], on_bar, atol=1e-6)
+    # and a small difference is visibly coloured: 1 of 20 is 22 % of the way.
+    assert image[0, scale + 1, 2] < 0.85
 
 
 def test_a_heat_split_puts_both_halves_on_one_scale():
