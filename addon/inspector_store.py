@@ -1,0 +1,129 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What the ray inspector keeps: the last Build & Render it can inspect, and
+the last inspection.
+
+Build & Render tells this module when it makes its job (`build_started`)
+and when it has shown the preview (`remember_build`). The record holds the
+camera the preview was traced with, so a preview pixel gives back exactly
+that pixel's ray even after the scene camera moved, and only a weak
+reference to the tree: the tree cache (tree_cache.py) owns the tree and
+holds one at a time, and the inspector must not keep an old one alive next
+to a new one.
+
+Staleness: a depsgraph_update_post handler counts the updates that can
+change the scene's triangles (geometry or transform of anything but
+cameras and lights, and any mesh or collection change). Counting is cheap;
+fingerprinting the triangles on every pick would cost an extraction of the
+scene. A build whose count moved between its start and the pick is stale.
+The count errs on the safe side: a relations update (e.g. after removing a
+data-block) flags the collections too, and then the user is asked to press
+Build & Render again, which re-uses the tree when the triangles are the same.
+"""
+
+from dataclasses import dataclass
+
+import bpy
+
+# Object types whose updates never change the triangles the tree was built of.
+NOT_GEOMETRY = frozenset({'CAMERA', 'LIGHT', 'LIGHT_PROBE', 'LIGHTPROBE', 'SPEAKER'})
+
+_changes = 0  # updates that may have changed the scene's triangles
+_build = None  # the KeptBuild of the last Build & Render, or None
+_inspection = None  # the last inspection (inspector_trace.inspect()), or None
+
+
+@dataclass
+class KeptBuild:
+    """The last Build & Render as the inspector needs it."""
+
+    tree_ref: object  # weakref.ref to the bsplab.Tree (the tree cache owns it)
+    camera: object  # the job's CameraSpec (kwargs(), width, height, name)
+    cull: bool  # whether the preview was traced with leaf culling
+    scene_name: str
+    image_size: tuple  # the preview image block's (width, height), colour bar included
+    changes: int  # _changes when the job read the scene
+
+    def tree(self):
+        return self.tree_ref()
+
+    @property
+    def render_size(self):
+        return self.camera.width, self.camera.height
+
+
+def scene_changes():
+    return _changes
+
+
+def _may_change_triangles(update):
+    data = update.id
+    if isinstance(data, bpy.types.Object):
+        return data.type not in NOT_GEOMETRY and (update.is_updated_geometry
+                                                  or update.is_updated_transform)
+    return isinstance(data, (bpy.types.Mesh, bpy.types.Collection))
+
+
+@bpy.app.handlers.persistent
+def count_scene_changes(_scene, depsgraph):
+    """depsgraph_update_post handler."""
+    global _changes
+    if any(_may_change_triangles(update) for update in depsgraph.updates):
+        _changes += 1
+
+
+@bpy.app.handlers.persistent
+def forget(*_args):
+    """load_pre handler (and unregister): nothing of another file is inspected."""
+    global _build, _inspection
+    _build = _inspection = None
+
+
+def add_handlers():
+    if count_scene_changes not in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.append(count_scene_changes)
+    if forget not in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.append(forget)
+
+
+def remove_handlers():
+    if count_scene_changes in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.remove(count_scene_changes)
+    if forget in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(forget)
+    forget()
+
+
+def build_started(job):
+    """Build & Render made `job` from the scene as it is now."""
+    job.inspector_changes = _changes
+
+
+def remember_build(scene, job, image):
+    """Build & Render showed `job`'s result in the preview image block `image`."""
+    global _build
+    if job.tree_ref is None or job.tree_ref() is None:
+        _build = None
+        return
+    inp = job.input
+    _build = KeptBuild(
+        tree_ref=job.tree_ref, camera=inp.camera,
+        cull=bool(inp.cull or inp.mode == "heat_culled"), scene_name=scene.name,
+        image_size=tuple(image.size),
+        changes=getattr(job, "inspector_changes", _changes))
+
+
+def kept_build():
+    return _build
+
+
+def is_stale(build):
+    return build.changes != _changes
+
+
+def keep_inspection(inspection):
+    global _inspection
+    _inspection = inspection
+
+
+def inspection():
+    return _inspection
