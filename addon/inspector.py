@@ -67,10 +67,10 @@ def _tag_redraw(context):
                 area.tag_redraw()
 
 
-def run_inspection(context, tree, origin, direction, cull, source, start):
+def run_inspection(context, build, tree, origin, direction, source, start):
     """Trace, keep the result and its drawing; return the inspection."""
-    inspection = inspector_trace.inspect(tree, origin, direction, cull, source)
-    data = inspector_draw.draw_data(tree, inspection)
+    inspection = inspector_trace.inspect(tree, origin, direction, build.cull, source)
+    data = inspector_draw.draw_data(tree, build.triangles, inspection)
     inspection["draw"] = data
     # Click to panel ready: what the panel shows and time_inspector.py prints.
     inspection["seconds"] = time.perf_counter() - start
@@ -95,7 +95,7 @@ def inspect_preview_pixel(context, x, y, start=None):
     column, row = inspector_trace.render_pixel(x, y, build.image_size, build.render_size)
     cam = make_camera(backend.import_core(), build.camera)
     origin, direction = inspector_trace.pixel_ray(cam, *build.render_size, column, row)
-    return run_inspection(context, tree, origin, direction, build.cull,
+    return run_inspection(context, build, tree, origin, direction,
                           "preview pixel ({}, {})".format(x, y), start)
 
 
@@ -106,7 +106,7 @@ def inspect_any_ray(context, origin, direction, source, start=None):
         raise UserError("The ray's origin and direction must be finite numbers")
     if not any(direction):
         raise UserError("The ray's direction must not be (0, 0, 0)")
-    return run_inspection(context, tree, origin, direction, build.cull, source, start)
+    return run_inspection(context, build, tree, origin, direction, source, start)
 
 
 def image_editor_pixel(space, region, region_x, region_y):

@@ -66,12 +66,13 @@ def test_colours(path, hit_prim):
     return prims[keep], colours
 
 
-def draw_data(tree, inspection):
+def draw_data(tree, triangles, inspection):
     """The arrays the batches are made of (all float32): "ray" (2, 3) from
     the origin to the hit or the box exit; "hit" (0 or 1, 3) the hit point;
     "cell_coords" / "cell_colours" a line list of the visited leaves' cells;
-    "tri_coords" / "tri_colours" (3T, 3) / (3T, 4) the tested triangles,
-    one colour per corner."""
+    "tri_coords" / "tri_colours" (3T, 3) / (3T, 4) the tested triangles
+    (taken from `triangles`, those `tree` was built of), one colour per
+    corner."""
     path = inspection["path"]
     origin, direction = inspection["origin"], inspection["direction"]
     hit_prim = inspection["counts"]["hit_prim"]
@@ -81,7 +82,7 @@ def draw_data(tree, inspection):
     leaves = path["node"][path["kind"] == trace.LEAF]
     cell_coords, cell_cols = cell_lines(tree, leaves)
     prims, colours = test_colours(path, hit_prim)
-    tris = tree.triangles[prims.astype(np.int64)].reshape(-1, 3)
+    tris = triangles[prims.astype(np.int64)].reshape(-1, 3)
     return {
         "ray": ray,
         "hit": hit,
