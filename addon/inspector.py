@@ -96,7 +96,7 @@ def inspect_preview_pixel(context, x, y, start=None):
     cam = make_camera(backend.import_core(), build.camera)
     origin, direction = inspector_trace.pixel_ray(cam, *build.render_size, column, row)
     return run_inspection(context, build, tree, origin, direction,
-                          "preview pixel ({}, {})".format(x, y), start)
+                          "pixel ({}, {})".format(x, y), start)
 
 
 def inspect_any_ray(context, origin, direction, source, start=None):
@@ -270,7 +270,7 @@ class BSPLAB_OT_inspect_pick(bpy.types.Operator):
                 return inspect_preview_pixel(context, x, y, start)
             if area.type == 'VIEW_3D':
                 origin, direction = viewport_ray(region, rx, ry)
-                return inspect_any_ray(context, origin, direction, "viewport ray", start)
+                return inspect_any_ray(context, origin, direction, "viewport", start)
         raise UserError("Pick in an Image Editor showing the preview or in a 3D Viewport's "
                         "view, not on {}".format(
                             "a panel or header" if area is not None else "the window's edge"))

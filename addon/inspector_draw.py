@@ -25,7 +25,7 @@ LAST_CELL = np.array((0.95, 0.2, 0.95, 0.9), dtype=np.float32)
 # Tested triangles, drawn translucent over the model.
 HIT_COLOUR = (0.1, 0.95, 0.2, 0.6)  # the closest hit: the ray's answer
 SUPERSEDED_COLOUR = (1.0, 0.55, 0.0, 0.5)  # hit, but a closer hit was found later
-MISS_COLOUR = (0.95, 0.1, 0.1, 0.5)
+MISS_COLOUR = (0.95, 0.1, 0.1, 0.4)
 CULLED_COLOUR = (0.6, 0.6, 0.6, 0.4)
 
 

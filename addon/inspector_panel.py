@@ -9,7 +9,9 @@ from . import inspector, inspector_store
 # Steps listed before "... N more": a kd ray on a big scene walks 50-100
 # nodes, more than a sidebar shows usefully.
 MAX_ROWS = 40
-STEP_HEADER = ("#", "kind", "plane", "t0 - t1", "tests")
+# The sidebar is narrow: the plane stands for the kind ("x = 0.5" is an x
+# node), a leaf is "leaf", and the t range and counts are short.
+STEP_HEADER = ("#", "node", "t range", "tests")
 
 
 def count_rows(inspection):
@@ -20,23 +22,23 @@ def count_rows(inspection):
     elif totals["hit_prim"] is None:
         hit = "none"
     else:
-        hit = "triangle {} at t = {:.5g}".format(totals["hit_prim"], totals["hit_t"])
+        hit = "{} at t {:.4g}".format(totals["hit_prim"], totals["hit_t"])
     return [
         ("Ray", inspection["source"]),
         ("Steps", "{} ({} leaves)".format(totals["steps"], totals["leaves"])),
-        ("General steps", str(totals["general_steps"])),
+        ("General", str(totals["general_steps"])),
         ("Tests", str(totals["tests"])),
         ("Culled", str(totals["culled"])),
         ("Hit", hit),
-        ("Answered in", "{:.1f} ms".format(1000 * inspection["seconds"])),
+        ("Time", "{:.1f} ms".format(1000 * inspection["seconds"])),
     ]
 
 
 def step_cells(row):
     """The texts of one step row (inspector_trace.step_rows)."""
     number, kind, plane, t0, t1, tests, culled = row
-    tested = "" if kind != "leaf" else str(tests) + (" +{} culled".format(culled) if culled else "")
-    return (str(number), kind, plane, "{:.4g} - {:.4g}".format(t0, t1), tested)
+    tested = "" if kind != "leaf" else str(tests) + (" +{}c".format(culled) if culled else "")
+    return (str(number), plane or kind, "{:.3g}-{:.3g}".format(t0, t1), tested)
 
 
 def step_lines(inspection, limit=MAX_ROWS):
@@ -46,15 +48,13 @@ def step_lines(inspection, limit=MAX_ROWS):
 
 
 def draw_step(layout, cells):
-    """One row of the step list: the five texts in columns."""
-    number, kind, plane, t_range, tests = cells
+    """One row of the step list: the four texts in columns."""
+    number, node, t_range, tests = cells
     split = layout.split(factor=0.12)
     split.label(text=number)
-    split = split.split(factor=0.18)
-    split.label(text=kind)
     split = split.split(factor=0.45)
-    split.label(text=plane)
-    split = split.split(factor=0.7)
+    split.label(text=node)
+    split = split.split(factor=0.75)
     split.label(text=t_range)
     split.label(text=tests)
 
@@ -66,12 +66,11 @@ class BSPLAB_PT_inspector(bpy.types.Panel):
     bl_label = "Ray Inspector"
     bl_idname = "BSPLAB_PT_inspector"
     bl_parent_id = "BSPLAB_PT_main"
-    bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
         layout = self.layout
         row = layout.row(align=True)
-        row.operator(inspector.BSPLAB_OT_inspect_pick.bl_idname, icon='EYEDROPPER')
+        row.operator(inspector.BSPLAB_OT_inspect_pick.bl_idname, text="Pick Ray", icon='EYEDROPPER')
         row.operator(inspector.BSPLAB_OT_inspect_clear.bl_idname, icon='X')
         inspection = inspector_store.inspection()
         if inspection is None:
@@ -80,7 +79,7 @@ class BSPLAB_PT_inspector(bpy.types.Panel):
         box = layout.box()
         col = box.column(align=True)
         for label, text in count_rows(inspection):
-            split = col.split(factor=0.4)
+            split = col.split(factor=0.3)
             split.label(text=label)
             split.label(text=text)
         lines, more = step_lines(inspection)

@@ -59,13 +59,14 @@ def render_pixel(x, y, image_size, render_size):
 
 
 def plane_text(kind, plane):
-    """How the panel shows a node's split plane (n.x = d)."""
+    """How the panel shows a node's split plane (n.p = d): "x = 0.5" for a
+    kd node, "(0.60,0.80,0.00)p = 2" for a general one, "" for a leaf."""
     if kind == LEAF:
         return ""
     n, d = plane[:3], plane[3]
     if kind < LEAF:  # an axis plane: n is the axis itself
-        return "{} = {:.4g}".format(KINDS[kind], d)
-    return "({:.2f}, {:.2f}, {:.2f})·p = {:.4g}".format(n[0], n[1], n[2], d)
+        return "{} = {:.3g}".format(KINDS[kind], d)
+    return "({:.2f},{:.2f},{:.2f})p = {:.3g}".format(n[0], n[1], n[2], d)
 
 
 def step_rows(path):
@@ -113,7 +114,7 @@ def segment_end(path, box_bounds, origin):
 def inspect(tree, origin, direction, cull, source):
     """Trace one ray with `tree` and keep what the panel and the viewport
     show: a plain dict. `source` says where the ray came from (for the
-    panel: e.g. "preview pixel (12, 40)" or "viewport")."""
+    panel: e.g. "pixel (12, 40)" or "viewport")."""
     origin = np.asarray(origin, dtype=np.float32)
     direction = np.asarray(direction, dtype=np.float32)
     path = tree.trace_path(origin, direction, cull=bool(cull))

@@ -92,12 +92,20 @@ def test_pick_gives_the_preview_hit_and_trace_paths_walk(addon, core, test_scene
     assert pick(addon, width // 2, image_h - 1 - height // 2)["counts"]["hit_prim"] is not None
 
 
-def test_step_rows_say_kind_plane_range_and_tests(addon, core, test_scene):
+@pytest.mark.parametrize("method", ["kd", "bsp_wn+kd"])
+def test_step_rows_say_kind_plane_range_and_tests(addon, core, test_scene, method):
+    test_scene["scene"].bsplab.method = method
     press(test_scene["scene"])
     build, tree = kept(addon)
     width, height = build.render_size
     inspection = pick(addon, width // 2, image_size(addon)[1] - 1 - height // 2)
     path = inspection["path"]
+    if method != "kd":  # the general planes are listed too
+        assert inspection["counts"]["general_steps"] > 0
+        general = np.flatnonzero(path["kind"] == core.tree.KINDS.index("general"))
+        n0, n1, n2, d = path["plane"][general[0]]
+        assert inspection["rows"][general[0]][2] == "({:.2f},{:.2f},{:.2f})p = {:.3g}".format(
+            n0, n1, n2, d)
     tested_refs = np.isin(path["test_result"], (0, 1))
     assert sum(row[5] for row in inspection["rows"]) == np.count_nonzero(tested_refs)
     for i, (number, kind, plane, t0, t1, tests, culled) in enumerate(inspection["rows"]):
@@ -105,7 +113,7 @@ def test_step_rows_say_kind_plane_range_and_tests(addon, core, test_scene):
         assert kind == core.tree.KINDS[path["kind"][i]]
         assert (t0, t1) == tuple(path["t_range"][i])
         if kind in ("x", "y", "z"):
-            assert plane == "{} = {:.4g}".format(kind, path["plane"][i][3])
+            assert plane == "{} = {:.3g}".format(kind, path["plane"][i][3])
         if kind != "leaf":
             assert plane and tests == 0 and culled == 0
         else:
@@ -189,7 +197,7 @@ def test_panel_lists_counts_and_caps_the_steps(addon, core, test_scene, monkeypa
     steps = inspection["counts"]["steps"]
     assert labels[labels.index("Steps") + 1].startswith(str(steps))
     assert labels[labels.index("Tests") + 1] == str(inspection["counts"]["tests"])
-    assert labels.count("kind") == 1  # the header
+    assert labels.count("node") == 1  # the header
     assert "leaf" in labels
     monkeypatch.setattr(panel, "MAX_ROWS", 2)
     lines, more = panel.step_lines(inspection, 2)
