@@ -44,9 +44,9 @@ def kept_build(context):
     return build, tree
 
 
-def check_fresh(build):
+def check_fresh(context, build):
     """UserError if the scene changed since `build`."""
-    if inspector_store.is_stale(build):
+    if inspector_store.is_stale(build, context.view_layer):
         raise UserError("The scene changed since the last Build & Render: press Build & Render "
                         "again to inspect the scene as it is now")
 
@@ -54,7 +54,7 @@ def check_fresh(build):
 def kept_tree(context):
     """kept_build(), checked to be of the scene as it is now."""
     build, tree = kept_build(context)
-    check_fresh(build)
+    check_fresh(context, build)
     return build, tree
 
 
@@ -91,7 +91,7 @@ def inspect_preview_pixel(context, x, y, start=None):
         raise UserError("The image '{}' is no longer the last Build & Render's preview ({} x {} "
                         "pixels, the build's was {} x {}): press Build & Render again".format(
                             preview.IMAGE_NAME, *image.size, *build.image_size))
-    check_fresh(build)
+    check_fresh(context, build)
     column, row = inspector_trace.render_pixel(x, y, build.image_size, build.render_size)
     cam = make_camera(backend.import_core(), build.camera)
     origin, direction = inspector_trace.pixel_ray(cam, *build.render_size, column, row)

@@ -109,7 +109,12 @@ def _batches(data):
     from gpu_extras.batch import batch_for_shader
 
     from .gpu_shaders import builtin
-    flat, smooth = builtin("UNIFORM_COLOR"), builtin("SMOOTH_COLOR")
+    smooth = builtin("SMOOTH_COLOR")
+    try:
+        # Blender 4.0+: points of a set size on every GPU backend.
+        point = builtin("POINT_UNIFORM_COLOR")
+    except ValueError:  # 3.x: the plain shader with gpu.state.point_size_set
+        point = builtin("UNIFORM_COLOR")
     line, smooth_line = builtin("POLYLINE_UNIFORM_COLOR"), builtin("POLYLINE_SMOOTH_COLOR")
     tris = {"pos": data["tri_coords"], "color": data["tri_colours"]}
     cells = {"pos": data["cell_coords"], "color": data["cell_colours"]}
@@ -117,7 +122,7 @@ def _batches(data):
         (smooth, batch_for_shader(smooth, 'TRIS', tris), None, None),
         (smooth_line, batch_for_shader(smooth_line, 'LINES', cells), CELL_WIDTH, None),
         (line, batch_for_shader(line, 'LINES', {"pos": data["ray"]}), RAY_WIDTH, RAY_COLOUR),
-        (flat, batch_for_shader(flat, 'POINTS', {"pos": data["hit"]}), None,
+        (point, batch_for_shader(point, 'POINTS', {"pos": data["hit"]}), None,
          HIT_COLOUR[:3] + (1.0,)),
     ]
 

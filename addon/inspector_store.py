@@ -19,6 +19,10 @@ scene. A build whose count moved between its start and the pick is stale.
 The count errs on the safe side: a relations update (e.g. after removing a
 data-block) flags the collections too, and then the user is asked to press
 Build & Render again, which re-uses the tree when the triangles are the same.
+Hiding an object in the view layer (`hide_set`, the outliner's eye) reaches
+the handler only as an update of the scene, like a selection: so the build
+also keeps which objects were visible, compared on each pick (a pass over
+the view layer's objects, no extraction).
 """
 
 from dataclasses import dataclass
@@ -48,6 +52,7 @@ class KeptBuild:
     scene_name: str
     image_size: tuple  # the preview image block's (width, height), colour bar included
     changes: int  # _changes when the job read the scene
+    visible: int  # visible_objects() then
 
     def tree(self):
         return self.tree_ref()
@@ -59,6 +64,12 @@ class KeptBuild:
 
 def scene_changes():
     return _changes
+
+
+def visible_objects(view_layer):
+    """A fingerprint of which objects of the view layer are visible."""
+    return hash(tuple(obj.name for obj in view_layer.objects
+                      if obj.visible_get(view_layer=view_layer)))
 
 
 def _may_change_triangles(update):
@@ -99,9 +110,9 @@ def remove_handlers():
     forget()
 
 
-def build_started(job):
+def build_started(job, view_layer):
     """Build & Render made `job` from the scene as it is now."""
-    job.inspector_changes = _changes
+    job.inspector_mark = (_changes, visible_objects(view_layer))
 
 
 def remember_build(scene, job, image):
@@ -115,15 +126,16 @@ def remember_build(scene, job, image):
         tree_ref=job.tree_ref, triangles=inp.triangles, camera=inp.camera,
         cull=bool(inp.cull or inp.mode == "heat_culled"), scene_name=scene.name,
         image_size=tuple(image.size),
-        changes=getattr(job, "inspector_changes", _changes))
+        changes=job.inspector_mark[0], visible=job.inspector_mark[1])
 
 
 def kept_build():
     return _build
 
 
-def is_stale(build):
-    return build.changes != _changes
+def is_stale(build, view_layer):
+    """Whether the scene may have changed since `build` read it."""
+    return build.changes != _changes or build.visible != visible_objects(view_layer)
 
 
 def keep_inspection(inspection):

@@ -88,11 +88,16 @@ def to_window(region, point3d):
     return None if xy is None else (region.x + xy[0], region.y + xy[1])
 
 
-def pick_with_eyedropper():
+def pick_at(point):
+    """Press the panel's Pick Ray (the modal eyedropper), then click at
+    window point `point`."""
     window, area = area_of('VIEW_3D')
     ui = next(r for r in area.regions if r.type == 'UI')
     with bpy.context.temp_override(window=window, area=area, region=ui):
-        return bpy.ops.bsplab.inspect_pick('INVOKE_DEFAULT')
+        result = bpy.ops.bsplab.inspect_pick('INVOKE_DEFAULT')
+    report["events"].append("eyedropper -> {}".format(sorted(result)))
+    time.sleep(0.3)
+    click(window, *point)
 
 
 def finish():
@@ -200,10 +205,7 @@ def tick():
         return 1.0
     if phase == "pick":
         state["pixel"], point, state["prim"] = preview_target(addon)
-        report["events"].append("eyedropper -> {}".format(sorted(pick_with_eyedropper())))
-        window, _ = area_of('IMAGE_EDITOR')
-        time.sleep(0.3)
-        click(window, *point)
+        pick_at(point)
         state["phase"] = "picked"
         return 1.0
     if phase == "picked":
@@ -237,11 +239,8 @@ def tick():
         return 0.5
     if phase == "viewport":
         # A click on the cube in the 3D view: the view's ray.
-        window, area = area_of('VIEW_3D')
-        target = to_window(main_region(area), (0.0, 0.0, 1.0))
-        report["events"].append("eyedropper -> {}".format(sorted(pick_with_eyedropper())))
-        time.sleep(0.3)
-        click(window, *target)
+        _, area = area_of('VIEW_3D')
+        pick_at(to_window(main_region(area), (0.0, 0.0, 1.0)))
         state["phase"] = "viewport picked"
         return 1.5
     if phase == "viewport picked":

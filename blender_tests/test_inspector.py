@@ -241,11 +241,26 @@ def test_pixel_on_the_colour_bar(addon, test_scene):
     assert bpy.ops.bsplab.inspect_pixel(x=2, y=bar_rows) == {'FINISHED'}
 
 
-def test_scene_changed_since_the_build(addon, test_scene):
+def change(test_scene, what):
+    cube = test_scene["cube"]
+    if what == "move":
+        cube.location.x += 0.5
+    elif what == "modifier":
+        cube.modifiers[0].levels = 1
+    elif what == "hide":
+        cube.hide_set(True)
+    elif what == "delete":
+        bpy.data.objects.remove(test_scene["ground"])
+    elif what == "add":
+        utils.link(test_scene["scene"], "New", utils.quad_mesh("New"), (0, 0, 5))
+    bpy.context.view_layer.update()
+
+
+@pytest.mark.parametrize("what", ["move", "modifier", "hide", "delete", "add"])
+def test_scene_changed_since_the_build(addon, test_scene, what):
     scene = test_scene["scene"]
     press(scene)
-    test_scene["cube"].location.x += 0.5
-    bpy.context.view_layer.update()
+    change(test_scene, what)
     fails_with(bpy.ops.bsplab.inspect_pixel, "scene changed since the last Build", x=1, y=1)
     fails_with(bpy.ops.bsplab.inspect_ray, "scene changed since the last Build")
     press(scene)  # a new build of the scene as it is now
@@ -257,6 +272,9 @@ def test_moving_the_camera_keeps_the_previews_rays(addon, core, test_scene):
     press(scene)
     origins, directions, _ = preview_rays(addon, core)
     test_scene["camera"].location.x += 1.0
+    # Neither a selection nor the render mode changes the triangles.
+    test_scene["cube"].select_set(True)
+    scene.bsplab.render_mode = "normal"
     bpy.context.view_layer.update()
     build, _ = kept(addon)
     width, height = build.render_size

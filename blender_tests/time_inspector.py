@@ -27,6 +27,7 @@ import time
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bsplab_test_utils as utils  # noqa: E402
 import time_button  # noqa: E402  (the scene and camera set-up, the add-on loader)
 
 
@@ -53,9 +54,7 @@ def ms(seconds):
 
 def main():
     args = parse_args()
-    for entry in reversed(os.environ.get("BSPLAB_PYTHONPATH", "").split(os.pathsep)):
-        if entry and entry not in sys.path:
-            sys.path.insert(0, entry)
+    utils.add_core_paths()
     from bsplab import io, workloads
     shared = workloads.shared_scenes_dir()
     path = None if shared is None else shared / f"{args.scene}.ply"
