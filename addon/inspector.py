@@ -14,6 +14,7 @@ its walk (panel: inspector_panel.py; viewport: inspector_draw.py).
 
 import math
 import time
+import traceback
 
 import bpy
 from bpy.props import FloatVectorProperty, IntProperty
@@ -145,18 +146,30 @@ def report_inspection(operator, inspection):
         totals["steps"], totals["tests"], hit))
 
 
+def perform(operator, inspect, *args):
+    """Call inspect(*args), report its answer or why it failed; return the
+    operator's result. An unexpected failure is reported too (with the
+    traceback in the console), never raised into Blender."""
+    try:
+        inspection = inspect(*args)
+    except UserError as ex:
+        operator.report({'ERROR'}, str(ex))
+        return {'CANCELLED'}
+    except Exception as ex:
+        traceback.print_exc()
+        operator.report({'ERROR'}, "BSP Lab ray inspector failed: {}: {}".format(
+            type(ex).__name__, ex))
+        return {'CANCELLED'}
+    report_inspection(operator, inspection)
+    return {'FINISHED'}
+
+
 class InspectOperator:
     bl_options = {'REGISTER'}
 
     def run(self, context, inspect, *args):
-        """Call inspect(context, *args) and report; the operator's result."""
-        try:
-            inspection = inspect(context, *args)
-        except UserError as ex:
-            self.report({'ERROR'}, str(ex))
-            return {'CANCELLED'}
-        report_inspection(self, inspection)
-        return {'FINISHED'}
+        """perform() inspect(context, *args)."""
+        return perform(self, inspect, context, *args)
 
 
 class BSPLAB_OT_inspect_pixel(InspectOperator, bpy.types.Operator):
@@ -253,13 +266,7 @@ class BSPLAB_OT_inspect_pick(bpy.types.Operator):
             return {'PASS_THROUGH'}  # navigating the view while picking is fine
         start = time.perf_counter()
         self._end(context)
-        try:
-            inspection = self._pick(context, event, start)
-        except UserError as ex:
-            self.report({'ERROR'}, str(ex))
-            return {'CANCELLED'}
-        report_inspection(self, inspection)
-        return {'FINISHED'}
+        return perform(self, self._pick, context, event, start)
 
     def _pick(self, context, event, start):
         area, region = region_under(context.window, event.mouse_x, event.mouse_y)

@@ -2,6 +2,8 @@
 the preview traced, its walk is trace_path's, the viewport arrays are sized
 and coloured as documented, and every bad pick says why."""
 
+import types
+
 import bpy
 import numpy as np
 import pytest
@@ -308,3 +310,43 @@ def test_a_loaded_file_forgets_the_inspection(addon, test_scene):
     utils.reset_file()
     assert addon.inspector_store.inspection() is None
     assert addon.inspector_store.kept_build() is None
+
+
+def test_an_unexpected_failure_is_reported_not_raised(addon, test_scene, monkeypatch):
+    press(test_scene["scene"])
+
+    def broken(*_args):
+        raise KeyError("boom")
+    monkeypatch.setattr(addon.inspector_trace, "inspect", broken)
+    fails_with(bpy.ops.bsplab.inspect_pixel, "ray inspector failed: KeyError", x=1, y=1)
+
+
+def test_image_editor_point_to_pixel(addon, test_scene):
+    """region_to_view gives the image's 0..1 coordinates: the pixel is their
+    floor times the size; another image in the editor is refused."""
+    press(test_scene["scene"])
+    image = bpy.data.images[addon.preview.IMAGE_NAME]
+    width, height = image.size
+    region = types.SimpleNamespace(view2d=types.SimpleNamespace(
+        region_to_view=lambda x, y: (x / 1000.0, y / 1000.0)))
+    space = types.SimpleNamespace(image=image)
+    u, v = (10.5 / width, (height - 0.5) / height)
+    assert addon.inspector.image_editor_pixel(space, region, u * 1000, v * 1000) == (10, height - 1)
+    other = bpy.data.images.new("Other", 4, 4)
+    with pytest.raises(addon.jobs.UserError, match="does not show the 'BSP Lab Preview'"):
+        addon.inspector.image_editor_pixel(types.SimpleNamespace(image=other), region, 1, 1)
+    with pytest.raises(addon.jobs.UserError, match="does not show"):
+        addon.inspector.image_editor_pixel(types.SimpleNamespace(image=None), region, 1, 1)
+
+
+def test_region_under_prefers_the_sidebar(addon):
+    """A click on a sidebar that overlaps the 3D view's main region is no pick."""
+    def rect(kind, x, y, w, h):
+        return types.SimpleNamespace(type=kind, x=x, y=y, width=w, height=h)
+    main, ui = rect('WINDOW', 0, 0, 800, 600), rect('UI', 600, 0, 200, 600)
+    area = types.SimpleNamespace(type='VIEW_3D', x=0, y=0, width=800, height=600,
+                                 regions=[main, ui])
+    window = types.SimpleNamespace(screen=types.SimpleNamespace(areas=[area]))
+    assert addon.inspector.region_under(window, 100, 100) == (area, main)
+    assert addon.inspector.region_under(window, 700, 100) == (area, None)
+    assert addon.inspector.region_under(window, 900, 100) == (None, None)
