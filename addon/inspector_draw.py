@@ -31,8 +31,7 @@ CULLED_COLOUR = (0.6, 0.6, 0.6, 0.4)
 
 def visit_colours(count):
     """(count, 4) colours from FIRST_CELL to LAST_CELL."""
-    f = np.linspace(0.0, 1.0, count, dtype=np.float32)[:, None] if count > 1 else \
-        np.zeros((count, 1), dtype=np.float32)
+    f = np.linspace(0.0, 1.0, count, dtype=np.float32)[:, None]  # [0] for one cell
     return (1 - f) * FIRST_CELL + f * LAST_CELL
 
 
@@ -53,7 +52,7 @@ def cell_lines(tree, leaves):
             np.ascontiguousarray(np.concatenate(cols), dtype=np.float32))
 
 
-def test_colours(path, hit_prim):
+def tested_triangle_colours(path, hit_prim):
     """Which references to draw (all but the repeats of a triangle this ray
     already tested) and the colour of each."""
     results, prims = path["test_result"], path["test_prim"]
@@ -81,7 +80,7 @@ def draw_data(tree, triangles, inspection):
     hit = ray[1:] if hit_prim is not None else np.zeros((0, 3), np.float32)
     leaves = path["node"][path["kind"] == trace.LEAF]
     cell_coords, cell_cols = cell_lines(tree, leaves)
-    prims, colours = test_colours(path, hit_prim)
+    prims, colours = tested_triangle_colours(path, hit_prim)
     tris = triangles[prims.astype(np.int64)].reshape(-1, 3)
     return {
         "ray": ray,
@@ -116,15 +115,17 @@ def _batches(data):
     except ValueError:  # 3.x: the plain shader with gpu.state.point_size_set
         point = builtin("UNIFORM_COLOR")
     line, smooth_line = builtin("POLYLINE_UNIFORM_COLOR"), builtin("POLYLINE_SMOOTH_COLOR")
-    tris = {"pos": data["tri_coords"], "color": data["tri_colours"]}
-    cells = {"pos": data["cell_coords"], "color": data["cell_colours"]}
-    return [
-        (smooth, batch_for_shader(smooth, 'TRIS', tris), None, None),
-        (smooth_line, batch_for_shader(smooth_line, 'LINES', cells), CELL_WIDTH, None),
-        (line, batch_for_shader(line, 'LINES', {"pos": data["ray"]}), RAY_WIDTH, RAY_COLOUR),
-        (point, batch_for_shader(point, 'POINTS', {"pos": data["hit"]}), None,
-         HIT_COLOUR[:3] + (1.0,)),
+    layers = [
+        (smooth, 'TRIS', {"pos": data["tri_coords"], "color": data["tri_colours"]}, None, None),
+        (smooth_line, 'LINES', {"pos": data["cell_coords"], "color": data["cell_colours"]},
+         CELL_WIDTH, None),
+        (line, 'LINES', {"pos": data["ray"]}, RAY_WIDTH, RAY_COLOUR),
+        (point, 'POINTS', {"pos": data["hit"]}, None, HIT_COLOUR[:3] + (1.0,)),
     ]
+    # An empty layer (no hit, no cell: a ray that missed the box) is left
+    # out rather than made into an empty batch.
+    return [(shader, batch_for_shader(shader, kind, content), width, colour)
+            for shader, kind, content, width, colour in layers if len(content["pos"])]
 
 
 def _draw():
