@@ -11,7 +11,7 @@ pixel's and that its hit is the preview's. Then turns the 3D view to look at
 the ray from the side, screenshots the screen and asserts on its pixels:
 the hit colour (green) around the projected hit point, the ray colour
 (yellow) along the projected ray. Last, a click in the 3D view inspects
-the view's ray. Writes OUT_DIR/gui_check_inspector.json, the screenshots,
+the view's ray, and a ray passing above the tree's box is drawn alone. Writes OUT_DIR/gui_check_inspector.json, the screenshots,
 and exits 0 when every check passed.
 """
 
@@ -102,7 +102,7 @@ def pick_at(point):
 
 def finish():
     checks = ("pixel_pick_ok", "hit_matches_preview", "green_at_hit", "yellow_on_ray",
-              "viewport_pick_ok")
+              "viewport_pick_ok", "missed_box", "yellow_on_missed_ray")
     report["ok"] = all(report.get(name) for name in checks)
     (OUT / "gui_check_inspector.json").write_text(json.dumps(report, indent=1))
     sys.stdout.flush()
@@ -248,6 +248,20 @@ def tick():
         report["viewport_pick_ok"] = bool(inspection) and inspection["source"] == "viewport" \
             and inspection["counts"]["hit_prim"] is not None
         screenshot("inspector_viewport")
+        # A ray above the tree's box: no cell, no triangle, no hit; the ray
+        # alone is drawn (the layers left empty make no batch).
+        ray = ((0.0, -8.0, 6.0), (0.0, 1.0, 0.0))
+        result = bpy.ops.bsplab.inspect_ray(origin=ray[0], direction=ray[1])
+        report["events"].append("ray above the box -> {}".format(sorted(result)))
+        state["phase"] = "missed"
+        return 1.5
+    if phase == "missed":
+        inspection = addon.inspector_store.inspection()
+        report["missed_box"] = bool(inspection) and inspection["missed_box"]
+        pixels, _ = screenshot("inspector_missed")
+        window, area = area_of('VIEW_3D')
+        point = to_window(main_region(area), (0.0, -6.0, 6.0))
+        report["yellow_on_missed_ray"] = colour_near(pixels, window, point, yellowish) if point else 0
         finish()
         return None
     return None
