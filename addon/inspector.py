@@ -19,7 +19,7 @@ import traceback
 import bpy
 from bpy.props import FloatVectorProperty, IntProperty
 
-from . import backend, inspector_draw, inspector_store, inspector_trace, preview
+from . import backend, compare, inspector_draw, inspector_store, inspector_trace, preview
 from .jobs import UserError, make_camera
 
 PICK_HINT = ("BSP Lab: click a pixel of the preview (Image Editor) or a point in the "
@@ -94,10 +94,29 @@ def inspect_preview_pixel(context, x, y, start=None):
                             preview.IMAGE_NAME, *image.size, *build.image_size))
     check_fresh(context, build)
     column, row = inspector_trace.render_pixel(x, y, build.image_size, build.render_size)
+    source = "pixel ({}, {})".format(x, y)
+    if build.split_b_ref is not None:
+        tree, side = split_side(build, tree, x, y, column)
+        source += ", tree " + side
     cam = make_camera(backend.import_core(), build.camera)
     origin, direction = inspector_trace.pixel_ray(cam, *build.render_size, column, row)
-    return run_inspection(context, build, tree, origin, direction,
-                          "pixel ({}, {})".format(x, y), start)
+    return run_inspection(context, build, tree, origin, direction, source, start)
+
+
+def split_side(build, tree_a, x, y, column):
+    """(tree, "A" or "B") shown at render column `column` of a split A/B
+    preview; UserError on the line between them."""
+    start, stop = compare.split_columns(build.render_size[0])
+    if start <= column < stop:
+        raise UserError("Pixel ({}, {}) is on the line between A and B: pick left of it for "
+                        "tree A, right of it for tree B".format(x, y))
+    if column < compare.split_column(build.render_size[0]):
+        return tree_a, "A"
+    tree_b = build.split_b()
+    if tree_b is None:
+        raise UserError("Tree B of the last Build & Render is no longer kept: press Build & "
+                        "Render again")
+    return tree_b, "B"
 
 
 def inspect_any_ray(context, origin, direction, source, start=None):

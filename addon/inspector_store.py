@@ -42,6 +42,9 @@ class KeptBuild:
     """The last Build & Render as the inspector needs it."""
 
     tree_ref: object  # weakref.ref to the bsplab.Tree (the tree cache owns it)
+    # Tree B of an A/B press whose preview is split (B's render right of the
+    # line), weakly; None otherwise (a difference map is picked as A's).
+    split_b_ref: object
     # The scene's (N, 3, 3) triangles the tree was built of, in world units:
     # the tested triangles are drawn from them. Tree.triangles would give the
     # same numbers but copies the whole array when the tree scaled its
@@ -56,6 +59,10 @@ class KeptBuild:
 
     def tree(self):
         return self.tree_ref()
+
+    def split_b(self):
+        """Tree B when the preview is split (None if not, or B is gone)."""
+        return None if self.split_b_ref is None else self.split_b_ref()
 
     @property
     def render_size(self):
@@ -118,12 +125,15 @@ def build_started(job, view_layer):
 def remember_build(scene, job, image):
     """Build & Render showed `job`'s result in the preview image block `image`."""
     global _build
-    if job.tree_ref is None or job.tree_ref() is None:
+    tree_ref = job.a.tree_ref
+    if tree_ref is None or tree_ref() is None:
         _build = None
         return
     inp = job.input
+    split = job.b is not None and inp.compare_view == "split"
     _build = KeptBuild(
-        tree_ref=job.tree_ref, triangles=inp.triangles, camera=inp.camera,
+        tree_ref=tree_ref, split_b_ref=job.b.tree_ref if split else None,
+        triangles=inp.triangles, camera=inp.camera,
         cull=bool(inp.cull or inp.mode == "heat_culled"), scene_name=scene.name,
         image_size=tuple(image.size),
         changes=job.inspector_mark[0], visible=job.inspector_mark[1])

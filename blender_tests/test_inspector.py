@@ -350,3 +350,33 @@ def test_region_under_prefers_the_sidebar(addon):
     assert addon.inspector.region_under(window, 100, 100) == (area, main)
     assert addon.inspector.region_under(window, 700, 100) == (area, None)
     assert addon.inspector.region_under(window, 900, 100) == (None, None)
+
+
+@pytest.mark.parametrize("view", ["split", "diff_steps"])
+def test_an_ab_preview_picks_the_tree_shown_there(addon, core, test_scene, view):
+    """Split: left of the line tree A's walk, right of it tree B's, on the
+    line a message. A difference map is picked as A's."""
+    from test_compare import set_b
+    scene = test_scene["scene"]
+    set_b(scene, view=view)
+    press(scene)
+    build, tree_a = kept(addon)
+    width, height = build.render_size
+    column = addon.compare.split_column(width)
+    image_h = image_size(addon)[1]
+    for x, side in ((column - 3, "A"), (column + 3, "B")):
+        inspection = pick(addon, x, image_h - 1 - height // 2)
+        tree = build.split_b() if view == "split" and side == "B" else tree_a
+        assert tree is not None
+        path = tree.trace_path(inspection["origin"], inspection["direction"], cull=build.cull)
+        assert_same_walk(inspection, path)
+        assert inspection["source"].endswith(", tree " + side) == (view == "split")
+        if tree is not tree_a:  # and B's walk is not A's
+            walk_a = tree_a.trace_path(inspection["origin"], inspection["direction"])
+            assert not np.array_equal(walk_a["kind"], inspection["path"]["kind"])
+    if view == "split":
+        assert build.split_b() is not tree_a
+        fails_with(bpy.ops.bsplab.inspect_pixel, "on the line between A and B",
+                   x=column, y=image_h - 1 - height // 2)
+    else:
+        assert build.split_b() is None
