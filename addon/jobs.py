@@ -10,6 +10,7 @@ Blender (core/tests/test_addon_jobs.py).
 
 import threading
 import time
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -191,6 +192,8 @@ class TreeRun:
         self.key = None
         self.reused = False
         self.fingerprint_seconds = None
+        # The tree rendered with, weakly: its cache owns it (the ray inspector).
+        self.tree_ref = None
 
     def tree(self, triangles, other=None, other_tree=None):
         """The cache's tree when it was built for this input, `other_tree`
@@ -339,6 +342,7 @@ class Job(WorkerJob):
         cam = make_camera(core, inp.camera)
         self._check_cancelled()
         tree = self.a.tree(inp.triangles)
+        self.a.tree_ref = weakref.ref(tree)
         self._check_cancelled()
         image, stats = self._render(self.a, tree, cam)
         result = {"image": image}
@@ -350,6 +354,7 @@ class Job(WorkerJob):
             except (ValueError, TypeError) as ex:
                 # The core's checks of B's options: say it is B's.
                 raise UserError("Tree B cannot be built: {}".format(ex)) from ex
+            self.b.tree_ref = weakref.ref(tree_b)
             self._check_cancelled()
             result["b_image"], stats["b"] = self._render(self.b, tree_b, cam)
             stats["compare"] = {"view": inp.compare_view, "a_options": inp.options,

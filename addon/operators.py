@@ -13,7 +13,8 @@ import traceback
 
 import bpy
 
-from . import backend, camera, compare, extract, legend, preview, sweep, tree_cache
+from . import (backend, camera, compare, extract, inspector_store, legend, preview, sweep,
+               tree_cache)
 # The worker side (bpy-free, tested without Blender); re-exported because the
 # operators and the Blender tests name them here.
 from .jobs import (Job, JobInput, TreeChoice, UserError, check_result,  # noqa: F401
@@ -357,7 +358,9 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
         inp = read_scene(context, core)
         if inp.b is None:
             _tree_cache_b.clear()  # no B: don't hold its memory
-        return Job(core, inp, cache=_tree_cache, cache_b=_tree_cache_b)
+        job = Job(core, inp, cache=_tree_cache, cache_b=_tree_cache_b)
+        inspector_store.build_started(job, context.view_layer)
+        return job
 
     def apply(self, context, scene, job):
         try:
@@ -368,6 +371,7 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
             apply_result(scene, job.result)
         except ValueError as ex:  # an A/B preview too narrow for its split
             return self._fail("BSP Lab cannot show the preview: {}".format(ex))
+        inspector_store.remember_build(scene, job, bpy.data.images[preview.IMAGE_NAME])
         stats = job.result["stats"]
         build = stats["build"]
         built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")
