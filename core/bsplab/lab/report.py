@@ -374,8 +374,14 @@ def _speed_cell(g: Group, column: str, bold: bool) -> str:
     x = g.per_round("embree_s", column)
     if x is None:
         return "—"
-    med = f"**{np.median(x):.2f}**" if bold else f"{np.median(x):.2f}"
-    return f"{med} ({x.min():.2f}–{x.max():.2f})"
+    med = _ratio_text(np.median(x))
+    return f"{'**' + med + '**' if bold else med} ({_ratio_text(x.min())}–{_ratio_text(x.max())})"
+
+
+def _ratio_text(x: float) -> str:
+    """Two decimals, or two significant digits below 0.1, so that a slow path
+    (e.g. a sanitizer build's) reads 0.004 rather than 0.00."""
+    return f"{x:.2f}" if x >= 0.1 else f"{x:.2g}"
 
 
 def _trace_table(res: Results, w: str) -> list[str]:
