@@ -132,7 +132,8 @@ def cmd_cull(args) -> int:
 def cmd_build_bench(args) -> int:
     from bsplab.lab import build_bench
     out = output_file(args.out, "--out", "build_benchmark.md") if args.out else None
-    rows = build_bench.bench_build(args.scenes, rounds=args.repeats, threads=args.threads)
+    rows = build_bench.bench_build(args.scenes, rounds=args.repeats, threads=args.threads,
+                                   sweeps=args.sweeps)
     text = build_bench.build_markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
     print(text)
     if out is not None:
@@ -305,6 +306,8 @@ def main(argv=None) -> int:
     bb.add_argument("--repeats", type=whole(1), default=3, help="paired rounds (default 3)")
     bb.add_argument("--threads", type=whole(0), default=0,
                     help="the second kd column's threads (default 0: all cores)")
+    bb.add_argument("--sweeps", action="store_true",
+                    help="also time bsp_wn+kd (K = 8) and bsp_ize+kd, as multiples of kd")
     bb.add_argument("--out", help="also write the Markdown table here")
     bb.set_defaults(func=cmd_build_bench)
 

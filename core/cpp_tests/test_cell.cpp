@@ -278,5 +278,75 @@ TEST(CellProjection, ProfileMatchesTheCutCells) {
     }
 }
 
+// A randomly cut cell (three oblique halvings of the cube).
+Cell randomly_cut_cell(std::mt19937& gen) {
+    std::uniform_real_distribution<double> coord(-1.0, 1.0);
+    Cell c = cube();
+    for (int i = 0; i < 3; ++i) {
+        Cell below, above;
+        const Vec3d n = unit(coord(gen), coord(gen), coord(gen));
+        double lo, hi;
+        c.extent(n, lo, hi);
+        c.split(n, 0.5 * (lo + hi), below, above);
+        c = below;
+    }
+    return c;
+}
+
+TEST(CellProjection, ReprojectingEqualsAFreshProjection) {
+    // The builder keeps one projection per thread and re-projects it: every
+    // value must be the one a new projection gives, bit for bit, and the
+    // previous direction's table must be gone (eval() then evaluates directly).
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<double> coord(-1.0, 1.0), share(0.02, 0.98);
+    const Cell c = randomly_cut_cell(gen);
+    const Cell box = cube();
+    CellProjection reused;
+    for (int i = 0; i < 6; ++i) {
+        const Vec3d u = unit(coord(gen), coord(gen), coord(gen));
+        reused.project(box, unit(1, 0, 0));
+        reused.tabulate();
+        reused.project(c, u);
+        const CellProjection fresh(c, u);
+        EXPECT_EQ(reused.lo(), fresh.lo());
+        EXPECT_EQ(reused.hi(), fresh.hi());
+        for (int j = 0; j < 10; ++j) {
+            const double t = fresh.lo() + share(gen) * (fresh.hi() - fresh.lo());
+            EXPECT_EQ(reused.cuts(t), fresh.cuts(t));
+            double rb, ra, fb, fa;
+            reused.eval(t, rb, ra);
+            fresh.areas_at(t, fb, fa);
+            EXPECT_EQ(rb, fb);
+            EXPECT_EQ(ra, fa);
+        }
+    }
+}
+
+TEST(CellProjection, AreaBelowNeverFallsAsThePlaneRises) {
+    // The sweep skips candidates on this (may_win_beyond): the part of a
+    // convex cell below a plane, and its surface, grow as the plane rises.
+    std::mt19937 gen(7);
+    std::uniform_real_distribution<double> coord(-1.0, 1.0);
+    const Cell c = randomly_cut_cell(gen);
+    for (int i = 0; i < 10; ++i) {
+        const Vec3d u = unit(coord(gen), coord(gen), coord(gen));
+        CellProjection cp(c, u), table(c, u);
+        ASSERT_TRUE(cp.areas_monotone());
+        table.tabulate();
+        double last = 0, last_table = 0;
+        for (int j = 0; j <= 200; ++j) {
+            const double t = cp.lo() + (cp.hi() - cp.lo()) * j / 200.0;
+            double b, a, tb, ta;
+            cp.areas_at(t, b, a);
+            table.eval(t, tb, ta);
+            EXPECT_GE(b, last - 1e-12 * c.area()) << "t = " << t;
+            EXPECT_GE(tb, last_table - 1e-12 * c.area()) << "t = " << t;
+            last = b;
+            last_table = tb;
+        }
+        EXPECT_GT(last, 0.0);
+    }
+}
+
 }  // namespace
 }  // namespace bsp

@@ -262,11 +262,47 @@ private:
                cost_.lower_bound(cost_.fallback_step(), nl, nr) < res.fallback.cost;
     }
 
+    // A second bound, for candidates beyond one already priced (at least
+    // as many references below as above): the part of a convex cell below
+    // a plane grows as the plane rises, and so does its surface (each
+    // face's clipped area does), so p_below is at least the p_below_min of
+    // the last candidate priced. With p_below + p_above >= 1 the weighted
+    // count is then at least p_below_min nl + (1 - p_below_min) nr when
+    // nl >= nr. 1e-7 of each probability absorbs the areas' rounding (about
+    // 1e-14 of the cell's), and the cost's float arithmetic is monotone, so
+    // no candidate skipped here could have won.
+    bool may_win_beyond(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr,
+                        double p_below_min) const {
+        if (nl < nr) return true;  // the lower bound is nl: may_win's already
+        const double b = std::clamp(p_below_min, 0.0, 1.0);
+        constexpr double kMargin = 1e-7;
+        if (cost_.split(cost_.step(kd, n), b - kMargin, nl, 1.0 - b - kMargin, nr) <
+            res.best.cost)
+            return true;
+        return cost_.has_fallback(kd) &&
+               cost_.split(cost_.fallback_step(), b - kMargin, nl, 1.0 - b - kMargin, nr) <
+                   res.fallback.cost;
+    }
+
+    // Per-thread buffers: sweeps run millions of times on small nodes. The
+    // thread_local is found once per sweep, through this call kept out of
+    // line: in a shared library each use of one is a look-up
+    // (__tls_get_addr), and inlined the compiler repeated it at every
+    // push_back, 6 % of a build.
+    struct SweepScratch {
+        std::vector<float> starts, ends, planars;
+        CellProjection cp;
+    };
+    [[gnu::noinline]] static SweepScratch& sweep_scratch() {
+        thread_local SweepScratch scratch;
+        return scratch;
+    }
+
     SweepResult sweep(const NodeRefs& nr, const Cell& cell, double area, const Vec3& u) const {
         SweepResult res;
         const size_t n = nr.refs.size();
-        // Per-thread buffers: sweeps run millions of times on small nodes.
-        thread_local std::vector<float> starts, ends, planars;
+        SweepScratch& scratch = sweep_scratch();
+        auto& [starts, ends, planars, cp] = scratch;
         starts.clear();
         ends.clear();
         planars.clear();
@@ -286,8 +322,7 @@ private:
         std::sort(ends.begin(), ends.end());
         std::sort(planars.begin(), planars.end());
 
-        const Vec3d ud(u);
-        CellProjection cp(cell, ud);
+        cp.project(cell, Vec3d(u));  // re-projected, it keeps its arrays
         const double clo = cp.lo(), chi = cp.hi();
         const bool kd = opt_.kd_nodes && is_ax;
         const double inv_area = 1.0 / area;
@@ -295,6 +330,8 @@ private:
         if (2 * n > 2 * cp.breaks_estimate()) cp.tabulate();
 
         uint32_t nl = 0, nr_ = uint32_t(n);
+        const bool monotone = cp.areas_monotone();
+        double p_below_min = 0;  // p_below of the last candidate priced
         size_t is = 0, ie = 0, ip = 0;
         while (is < starts.size() || ie < ends.size() || ip < planars.size()) {
             float p = kInf;
@@ -311,9 +348,11 @@ private:
             // floors) can be cut off into a flat cell, as in the kd builder.
             const bool at_lo = is_ax && np > 0 && double(p) == clo && chi > clo;
             const bool at_hi = is_ax && np > 0 && double(p) == chi && chi > clo;
-            if ((inside || at_lo || at_hi) && may_win(res, kd, n, nl, nr_)) {
+            if ((inside || at_lo || at_hi) && may_win(res, kd, n, nl, nr_) &&
+                (!monotone || may_win_beyond(res, kd, n, nl, nr_, p_below_min))) {
                 double below, above;
                 cp.eval(double(p), below, above);
+                p_below_min = below * inv_area;
                 if (!at_hi) offer(res, u, kd, p, true, nl + np, nr_, below, above, inv_area, n);
                 if (np && !at_lo)
                     offer(res, u, kd, p, false, nl, nr_ + np, below, above, inv_area, n);
@@ -496,9 +535,9 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
     };
 
     const double inv_area = 1.0 / area;
+    CellProjection cp;  // re-projected per plane, its arrays kept
     auto try_plane = [&](const Vec3& u, float d) {
-        const Vec3d ud(u);
-        const CellProjection cp(cell, ud);
+        cp.project(cell, Vec3d(u));
         if (!cp.cuts(double(d))) return;
         int axis;
         const bool is_ax = is_axis(u, axis);

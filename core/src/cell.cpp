@@ -5,12 +5,31 @@
 namespace bsp {
 namespace {
 
-// Twice the area of a planar polygon with the given unit normal.
-double twice_area(const Vec3d& normal, const Vec3d* p, size_t n) {
+// Twice the area of a planar polygon with the given unit normal; `p` is
+// anything indexable to a Vec3d (an array of them, or ClipBuffer).
+template <class Points>
+double twice_area(const Vec3d& normal, const Points& p, size_t n) {
     Vec3d s(0, 0, 0);
     for (size_t i = 1; i + 1 < n; ++i) s = s + cross(p[i] - p[0], p[i + 1] - p[0]);
     return std::fabs(dot(s, normal));
 }
+
+// A face clipped by the sweep's plane, as raw doubles: an array of Vec3d
+// would be zeroed on every use (Vec3d's members have initialisers), and
+// clearing its 1.5 kB was a fifth of the area evaluation's time.
+class ClipBuffer {
+public:
+    static constexpr size_t kCapacity = 64;
+    void set(size_t i, const Vec3d& v) {
+        xyz_[3 * i] = v.x;
+        xyz_[3 * i + 1] = v.y;
+        xyz_[3 * i + 2] = v.z;
+    }
+    Vec3d operator[](size_t i) const { return {xyz_[3 * i], xyz_[3 * i + 1], xyz_[3 * i + 2]}; }
+
+private:
+    double xyz_[3 * kCapacity];
+};
 
 bool is_axis_direction(const Vec3d& n) { return (n.x != 0) + (n.y != 0) + (n.z != 0) == 1; }
 
@@ -48,6 +67,8 @@ Cell Cell::from_box(const Box& b) {
 }
 
 void Cell::add_face(const Vec3d& normal, const Vec3d* p, size_t n) {
+    for (size_t i = 0; i < n; ++i)
+        magnitude_ = std::max(magnitude_, std::fabs(p[i].x) + std::fabs(p[i].y) + std::fabs(p[i].z));
     faces_.push_back({normal, uint32_t(pts_.size()), uint32_t(n), 0.5 * twice_area(normal, p, n)});
     pts_.insert(pts_.end(), p, p + n);
 }
@@ -114,6 +135,12 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
     extent(n, lo, hi);
     const double eps = 1e-12 * std::max({std::fabs(lo), std::fabs(hi), hi - lo, 1e-30});
     const bool on_axis = is_axis_direction(n);
+    // Each part has at most one face more than the cell, each face at most
+    // one vertex more, and the cap one per face: sized once, no regrowth.
+    for (Cell* part : {&below, &above}) {
+        part->faces_.reserve(faces_.size() + 1);
+        part->pts_.reserve(pts_.size() + 2 * faces_.size());
+    }
     std::vector<Vec3d> cap;
     std::vector<Vec3d> b, a;
     for (const Face& f : faces_) {
@@ -151,28 +178,23 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
     if (!above.has_face_in(un * -1.0, -d / len, eps)) above.add_cap(un * -1.0, cap2, weld);
 }
 
-CellProjection::CellProjection(const Cell& cell, const Vec3d& u) : cell_(cell), u_(u) {
+void CellProjection::project(const Cell& cell, const Vec3d& u) {
+    cell_ = &cell;
+    u_ = u;
+    breaks_.clear();
+    coef_.clear();  // eval() must not read the previous cell's table
+    faces_.clear();
+    faces_.reserve(cell.faces().size());
     const auto& pts = cell.points();
     proj_.resize(pts.size());
     lo_ = INFINITY;
     hi_ = -INFINITY;
-    double magnitude = 0;
-    for (size_t i = 0; i < pts.size(); ++i) {
-        proj_[i] = dot(u, pts[i]);
-        lo_ = std::min(lo_, proj_[i]);
-        hi_ = std::max(hi_, proj_[i]);
-        const Vec3d& p = pts[i];
-        magnitude = std::max(magnitude, std::fabs(p.x) + std::fabs(p.y) + std::fabs(p.z));
-    }
-    // A general plane's face lies off its plane by the rounding of the
-    // interpolated vertices (about 1e-14 of the coordinates after dozens of
-    // cuts), so the plane that made it could be a candidate inside the cell
-    // again and cut off an empty sliver, for the empty bonus, at every level
-    // down to the depth limit. A margin far below a float's resolution
-    // (1.2e-7) rules that out. Axis faces are exact (split() puts them on
-    // their planes) and need none: a float plane an ulp inside still cuts.
-    slack_ = is_axis_direction(u) ? 0.0 : 1e-9 * magnitude;
+    monotone_ = true;
+    // One pass: the cell's points are its faces' polygons, face after face
+    // (add_face), so the cell's extent and each face's come together.
     for (const Cell::Face& f : cell.faces()) {
+        // A clipped face has at most two points per vertex.
+        if (2 * size_t(f.count) + 2 >= ClipBuffer::kCapacity) monotone_ = false;
         FaceInfo fi;
         fi.area = f.area;
         const double c = dot(f.normal, u);
@@ -181,20 +203,32 @@ CellProjection::CellProjection(const Cell& cell, const Vec3d& u) : cell_(cell), 
         fi.faces_up = c > 0;
         fi.lo = INFINITY;
         fi.hi = -INFINITY;
-        for (uint32_t i = 0; i < f.count; ++i) {
-            fi.lo = std::min(fi.lo, proj_[f.first + i]);
-            fi.hi = std::max(fi.hi, proj_[f.first + i]);
+        for (uint32_t i = f.first; i < f.first + f.count; ++i) {
+            const double x = dot(u, pts[i]);
+            proj_[i] = x;
+            fi.lo = std::min(fi.lo, x);
+            fi.hi = std::max(fi.hi, x);
+            lo_ = std::min(lo_, x);
+            hi_ = std::max(hi_, x);
         }
         fi.first = f.first;
         fi.count = f.count;
         faces_.push_back(fi);
     }
+    // A general plane's face lies off its plane by the rounding of the
+    // interpolated vertices (about 1e-14 of the coordinates after dozens of
+    // cuts), so the plane that made it could be a candidate inside the cell
+    // again and cut off an empty sliver, for the empty bonus, at every level
+    // down to the depth limit. A margin far below a float's resolution
+    // (1.2e-7) rules that out. Axis faces are exact (split() puts them on
+    // their planes) and need none: a float plane an ulp inside still cuts.
+    slack_ = is_axis_direction(u) ? 0.0 : 1e-9 * cell.magnitude();
 }
 
 void CellProjection::areas_at(double t, double& below, double& above) const {
     below = above = 0;
-    const auto& pts = cell_.points();
-    const auto& faces = cell_.faces();
+    const auto& pts = cell_->points();
+    const auto& faces = cell_->faces();
     for (size_t k = 0; k < faces_.size(); ++k) {
         const FaceInfo& f = faces_[k];
         double b;
@@ -212,15 +246,20 @@ void CellProjection::areas_at(double t, double& below, double& above) const {
             b = 0;
         } else {
             // Clip the face to u.x <= t using the stored projections.
-            Vec3d buf[64];
+            // Each vertex's distance is computed once and carried to the
+            // next edge (no modulo per vertex: this loop is the sweep's hot spot).
+            ClipBuffer buf;
             size_t m = 0;
-            for (uint32_t i = 0; i < f.count && m + 2 < 64; ++i) {
-                const uint32_t j = (i + 1) % f.count;
-                const double da = proj_[f.first + i] - t, db = proj_[f.first + j] - t;
-                const Vec3d& pa = pts[f.first + i];
-                if (da <= 0) buf[m++] = pa;
+            const double* d = &proj_[f.first];
+            const Vec3d* p = &pts[f.first];
+            double da = d[0] - t;
+            for (uint32_t i = 0; i < f.count && m + 2 < ClipBuffer::kCapacity; ++i) {
+                const uint32_t j = i + 1 == f.count ? 0 : i + 1;
+                const double db = d[j] - t;
+                if (da <= 0) buf.set(m++, p[i]);
                 if ((da < 0 && db > 0) || (da > 0 && db < 0))
-                    buf[m++] = pa + (pts[f.first + j] - pa) * (da / (da - db));
+                    buf.set(m++, p[i] + (p[j] - p[i]) * (da / (da - db)));
+                da = db;
             }
             b = m < 3 ? 0.0 : std::min(f.area, 0.5 * twice_area(faces[k].normal, buf, m));
         }

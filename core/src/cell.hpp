@@ -42,12 +42,15 @@ public:
     void extent(const Vec3d& u, double& lo, double& hi) const;
     // Cuts the cell by the plane n.x = d into the parts below and above it.
     void split(const Vec3d& n, double d, Cell& below, Cell& above) const;
+    // The largest |x| + |y| + |z| of its points: the scale of their rounding.
+    double magnitude() const { return magnitude_; }
     const std::vector<Vec3d>& points() const { return pts_; }
     const std::vector<Face>& faces() const { return faces_; }
 
 private:
     std::vector<Vec3d> pts_;  // face polygons, concatenated
     std::vector<Face> faces_;
+    double magnitude_ = 0;  // kept by add_face, the one writer of pts_
     void add_face(const Vec3d& normal, const Vec3d* p, size_t n);
     void add_cap(const Vec3d& normal, std::vector<Vec3d>& p, double eps);
     // Whether a face with this outward normal lies in the plane normal.x = offset.
@@ -60,7 +63,12 @@ private:
 // one side cost nothing, only the faces t crosses are clipped.
 class CellProjection {
 public:
-    CellProjection(const Cell& cell, const Vec3d& u);
+    CellProjection() = default;
+    CellProjection(const Cell& cell, const Vec3d& u) { project(cell, u); }
+    // Sees `cell` along u from now on (any earlier table is dropped). One
+    // object re-projected keeps its arrays: a build projects every node's
+    // cell K times, and BSP_IZE once per candidate plane.
+    void project(const Cell& cell, const Vec3d& u);
     double lo() const { return lo_; }
     double hi() const { return hi_; }
     // Whether the plane u.x = t cuts the cell in two: inside its extent by
@@ -70,6 +78,10 @@ public:
     // simple polytope lies on three faces); tabulating costs twice that.
     size_t breaks_estimate() const { return proj_.size() / 3 + 1; }
     void areas_at(double t, double& below, double& above) const;
+    // Whether the area below t, as computed, never falls as t rises beyond
+    // rounding: true unless a face has so many vertices that its clip
+    // could overflow areas_at's buffer and be cut short.
+    bool areas_monotone() const { return monotone_; }
 
     // Between two consecutive vertex projections both areas are quadratic in
     // t, so three exact evaluations per interval tabulate them (ALGORITHMS.md
@@ -84,10 +96,11 @@ private:
         uint32_t first, count;
         bool faces_up;  // its outward normal points along +u
     };
-    const Cell& cell_;
+    const Cell* cell_ = nullptr;
     Vec3d u_;
     double lo_ = 0, hi_ = 0;
     double slack_ = 0;
+    bool monotone_ = true;
     std::vector<double> proj_;    // projection of every face point
     std::vector<FaceInfo> faces_;
     std::vector<double> breaks_;  // sorted distinct projections

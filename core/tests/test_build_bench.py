@@ -50,3 +50,20 @@ def test_command_writes_the_table(tmp_path, capsys):
 
 def test_command_fails_when_no_scene_is_here(capsys):
     assert main(["bench-build", "--scenes", "no_such_scene", "--repeats", "1"]) == 1
+
+
+def test_sweeps_add_the_bsp_builds_over_kd(tmp_path):
+    rows = build_bench.bench_build(["room"], rounds=1, threads=2, log=lambda _: None,
+                                   sweeps=True)
+    r = rows[0]
+    for key in ("wn8", "ize"):
+        assert r[f"{key}_s"] > 0, key
+        # The ratio is over the kd build on the same threads, in the same round.
+        assert r[f"{key}_per_kd"] == pytest.approx(r[f"{key}_s"] / r["kd_n_s"], rel=1e-9)
+    text = build_bench.build_markdown(rows, "cmd")
+    assert "bsp_wn+kd K=8, 2 | / kd 2 |" in text
+    assert f"{r['wn8_per_kd']:.2f}× |" in text.splitlines()[-1]
+    out = tmp_path / "b.md"
+    assert main(["bench-build", "--scenes", "room", "--repeats", "1", "--sweeps",
+                 "--out", str(out)]) == 0
+    assert "bsp_ize+kd" in out.read_text()
