@@ -141,3 +141,23 @@ def test_out_of_range_settings_are_clamped_by_the_properties(addon, empty_scene,
     setattr(props, name, value)
     settings = addon.overlay.settings_of(props)  # valid: no ValueError
     assert getattr(settings, name) == getattr(props, name) != value
+
+
+def test_colour_by_depth_shows_the_ramp_in_the_legend(addon, core, test_scene):
+    scene = test_scene["scene"]
+    build(scene)
+    props = scene.bsplab_overlay
+    props.show, props.colour_by, props.max_depth = True, "depth", 4
+    assert "depth 0 orange \u2192 depth 4 blue" in panel_labels(addon)
+    geometry = addon.overlay.current_geometry(scene)
+    ramp = addon.overlay_geometry.DEPTH_RAMP
+    # Polygon 0 is the root's (depth 0): its first vertex has the ramp's start.
+    assert geometry["depth"][0] == 0
+    assert np.allclose(geometry["face_colours"][0, :3], ramp[0])
+    deepest = np.repeat(geometry["depth"], np.diff(scene_offsets(addon, 4)))
+    assert (deepest == 4).any()
+    assert np.allclose(geometry["face_colours"][deepest == 4, :3], ramp[1])
+
+
+def scene_offsets(addon, depth):
+    return addon.overlay.kept_tree().split_polygons(depth)["offsets"]
