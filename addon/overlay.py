@@ -39,10 +39,20 @@ last_draw_calls = 0
 
 
 def _tag_redraw_viewports(context):
-    screen = getattr(context, "screen", None)
-    for area in (screen.areas if screen else ()):
-        if area.type == 'VIEW_3D':
-            area.tag_redraw()
+    for window in context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == 'VIEW_3D':
+                area.tag_redraw()
+
+
+def redraw_if_tree_changed(context):
+    """Called by the panel's header, which redraws when a job ends: a new
+    tree must replace the old one's planes now, not at the next orbit. (The
+    job redraws only the sidebars, to spare heavy scenes.)"""
+    props = context.scene.bsplab_overlay
+    tree = kept_tree()
+    if props.show and tree is not None and not _geometry_cache.made_from(tree):
+        _tag_redraw_viewports(context)
 
 
 def _show_changed(self, context):

@@ -212,6 +212,10 @@ class GeometryCache:
         self._geometry = None
         self.builds = 0  # how many times the core was asked: for the tests
 
+    def made_from(self, tree):
+        """True when the kept geometry was made from `tree`."""
+        return tree is not None and self._tree() is tree
+
     def get(self, tree, settings, cursor=None):
         if tree is None:
             self.clear()

@@ -21,6 +21,7 @@ class BSPLAB_PT_overlay(bpy.types.Panel):
 
     def draw_header(self, context):
         self.layout.prop(context.scene.bsplab_overlay, "show", text="")
+        overlay.redraw_if_tree_changed(context)
 
     def draw(self, context):
         layout = self.layout

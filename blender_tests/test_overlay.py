@@ -19,16 +19,20 @@ def panel_labels(addon):
     return [text for kind, text in draw(addon.overlay_panel.BSPLAB_PT_overlay) if kind == "label"]
 
 
+def draw_header(addon):
+    layout = RecordingLayout()
+    panel = type("Panel", (), {"layout": layout})()
+    addon.overlay_panel.BSPLAB_PT_overlay.draw_header(panel, bpy.context)
+    return layout.log
+
+
 def test_registered_with_its_panel_and_settings(addon, empty_scene):
     assert hasattr(bpy.types, "BSPLAB_PT_overlay")
     props = empty_scene.bsplab_overlay
     assert props.show is False and props.max_depth == 8 and props.scope == "whole"
     assert not addon.overlay.handler_installed()
     # The header's tick box is the toggle.
-    layout = RecordingLayout()
-    panel = type("Panel", (), {"layout": layout})()
-    addon.overlay_panel.BSPLAB_PT_overlay.draw_header(panel, bpy.context)
-    assert layout.log == [("prop", "show")]
+    assert draw_header(addon) == [("prop", "show")]
 
 
 def test_toggling_adds_and_removes_the_handler(addon, empty_scene):
@@ -55,6 +59,7 @@ def test_overlay_arrays_are_the_kept_trees_split_planes(addon, core, test_scene)
     props.show, props.max_depth, props.alpha = True, 5, 0.4
     tree = addon.overlay.kept_tree()
     assert tree is not None
+    draw_header(addon)  # a new tree: the header asks the viewports to redraw
     geometry = addon.overlay.current_geometry(scene)
     polys = tree.split_polygons(5)
     sizes = np.diff(polys["offsets"])

@@ -157,7 +157,9 @@ def test_cache_walks_only_when_something_changed():
     cache.get(tree, cursor, (0.5, 0, 0))
     assert cache.builds == 4
     other = tree_of("bsp_cn+kd", "fan")
+    assert cache.made_from(tree) and not cache.made_from(other)
     assert cache.get(other, cursor, (0.5, 0, 0)) is not a
+    assert cache.made_from(other) and not cache.made_from(tree)
     assert cache.get(None, cursor) is None and cache.builds == 0
 
 
