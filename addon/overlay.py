@@ -116,6 +116,7 @@ def settings_of(props):
 
 
 def kept_tree():
+    """The tree the last Build & Render kept, or None."""
     return operators.kept_tree_cache().kept_tree()
 
 
