@@ -23,7 +23,8 @@ if "bpy" in locals():
     import sys as _sys
     for _name in ("backend", "extract", "camera", "preview", "stats", "compare", "tree_cache",
                   "jobs", "sweep", "inspector_store", "inspector_trace", "inspector_draw",
-                  "properties", "operators", "ui", "inspector", "inspector_panel"):
+                  "overlay_geometry", "properties", "operators", "ui", "inspector",
+                  "inspector_panel", "overlay", "overlay_panel"):
         _module = _sys.modules.get("{}.{}".format(__name__, _name))
         if _module is not None:
             importlib.reload(_module)
@@ -31,7 +32,7 @@ if "bpy" in locals():
 
 import bpy
 
-from . import inspector, inspector_panel, operators, properties, ui
+from . import inspector, inspector_panel, operators, overlay, overlay_panel, properties, ui
 
 classes = (
     *properties.classes,
@@ -39,6 +40,8 @@ classes = (
     *ui.classes,
     *inspector.classes,
     *inspector_panel.classes,
+    *overlay.classes,
+    *overlay_panel.classes,
 )
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
@@ -53,6 +56,7 @@ def register():
         unregister()
     _register_classes()
     properties.register_props()
+    overlay.register_props()
     operators.add_handlers()
     inspector.add_handlers()
     _registered = True
@@ -65,6 +69,7 @@ def unregister():
     operators.cancel_active_job()
     operators.remove_handlers()  # and forget the kept tree
     inspector.remove_handlers()  # and forget the inspection
+    overlay.unregister_props()
     properties.unregister_props()
     _unregister_classes()
     _registered = False

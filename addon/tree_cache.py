@@ -107,6 +107,12 @@ class TreeCache:
         with self._lock:
             return self._tree.get(key)
 
+    def kept_tree(self):
+        """The kept tree, whatever its key, or None; forgets nothing (the
+        viewport overlay draws it)."""
+        with self._lock:
+            return self._tree.value
+
     def keep_tree(self, key, tree, generation):
         self._keep(self._tree, key, tree, generation)
 
