@@ -137,7 +137,11 @@ def machine_lines(meta: dict | None) -> list[str]:
     """Where the rows were measured, from the results file's JSON record."""
     if not meta:
         return []
-    run = meta.get("runs", [{}])[-1]
+    runs = meta.get("runs") or [{}]
+    # The last start that ran cells (a resumed run that only re-renders the
+    # page measured nothing: its load says nothing about the rows).
+    run = next((r for r in reversed(runs)
+                if r.get("cells_after", 1) > r.get("cells_before", 0)), runs[-1])
     mach = run.get("machine", {})
     return [f"Machine: {mach.get('cpu', '?')}, {mach.get('cores', '?')} cores; "
             f"versions {mach.get('versions', {})}. Spec fingerprint "
