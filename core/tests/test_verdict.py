@@ -68,7 +68,7 @@ def test_page_from_record_and_results_rows(tmp_path, room_record):
     rows = run(spec, tmp_path / "rows", fresh=True, quiet=True)
     record = {"started": "now", "machine": {"cores": 2}, "load_start": [1.0, 1.0, 1.0],
               "load_end": [1.0, 1.0, 1.0], "rounds": 2, "width": 24, "height": 24,
-              "seconds": 1.0, "scenes": [room_record]}
+              "minutes": 1.0, "scenes": [room_record]}
     page = verdict_report.markdown(record, rows, "python -m bsplab verdict")
     for section in range(1, 8):
         assert f"## {section}." in page

@@ -34,7 +34,7 @@ import numpy as np
 
 from .cells import load_scene, scene_references
 from .spec import Spec, build_options, load_spec
-from .store import machine_info
+from .store import load_average, machine_info
 from .timing import Tracer, paired_rounds
 
 SPECS = Path(__file__).resolve().parent.parent / "specs"
@@ -155,22 +155,16 @@ def run(scenes: list[str], out_json: Path, rounds: int = 7, log=print, **overrid
     """Every scene's record in one JSON file (written after each scene, so a
     long run shows its progress)."""
     spec = experiment_spec(scenes, **overrides)
+    # Like the results file's record: when it ran and how loaded the machine
+    # was (the timing itself is timing.paired_rounds', nothing here times).
+    start = time.time()
     record = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine_info(),
-              "load_start": list(_load()), "rounds": rounds,
+              "load_start": load_average(), "rounds": rounds,
               "width": spec.width, "height": spec.height, "scenes": []}
-    start = time.perf_counter()
     for scene in spec.scenes:
         log(f"verdict: {scene}")
         record["scenes"].append(trace_scene(spec, scene, rounds=rounds))
-        record.update(seconds=round(time.perf_counter() - start, 1), load_end=list(_load()))
+        record.update(minutes=round((time.time() - start) / 60, 1), load_end=load_average())
         out_json.parent.mkdir(parents=True, exist_ok=True)
         out_json.write_text(json.dumps(record, indent=1))
     return record
-
-
-def _load() -> tuple[float, float, float]:
-    import os
-    try:
-        return os.getloadavg()
-    except OSError:  # not every system has one
-        return (float("nan"),) * 3

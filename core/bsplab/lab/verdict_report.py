@@ -227,11 +227,11 @@ def markdown(record: dict | None, rows: list[dict] | None, command: str) -> str:
            "in the same round on the same rays, one thread (`bsplab.lab.timing`), min–max "
            "over the rounds in brackets.", ""]
     if record:
-        load = ", ".join(f"{a:.1f} → {b:.1f}" for a, b in zip(record["load_start"],
-                                                              record["load_end"]))
+        load = ", ".join(f"{a:.1f} → {b:.1f}" for a, b in zip(record["load_start"] or [],
+                                                              record["load_end"] or []))
         out += [f"Traced part: {record['width']}×{record['height']} primary rays from the "
                 f"results spec's camera and one AO ray per hit, {record['rounds']} rounds; "
-                f"{record['seconds'] / 60:.1f} min, started {record['started']}; load average "
+                f"{record['minutes']:.1f} min, started {record['started']}; load average "
                 f"(1/5/15 min) at start → end: {load} on {record['machine']['cores']} cores "
                 "(above the cores: other jobs shared the machine).", "",
                 "## 1. A general step costs more than a kd step", "",
