@@ -21,8 +21,9 @@ bl_info = {
 if "bpy" in locals():
     import importlib
     import sys as _sys
-    for _name in ("backend", "extract", "camera", "preview", "stats", "tree_cache", "jobs", "sweep",
-                  "properties", "operators", "ui"):
+    for _name in ("backend", "extract", "camera", "preview", "stats", "compare", "tree_cache",
+                  "jobs", "sweep", "inspector_store", "inspector_trace", "inspector_draw",
+                  "properties", "operators", "ui", "inspector", "inspector_panel"):
         _module = _sys.modules.get("{}.{}".format(__name__, _name))
         if _module is not None:
             importlib.reload(_module)
@@ -30,12 +31,14 @@ if "bpy" in locals():
 
 import bpy
 
-from . import operators, properties, ui
+from . import inspector, inspector_panel, operators, properties, ui
 
 classes = (
     *properties.classes,
     *operators.classes,
     *ui.classes,
+    *inspector.classes,
+    *inspector_panel.classes,
 )
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
@@ -51,6 +54,7 @@ def register():
     _register_classes()
     properties.register_props()
     operators.add_handlers()
+    inspector.add_handlers()
     _registered = True
 
 
@@ -60,6 +64,7 @@ def unregister():
         return
     operators.cancel_active_job()
     operators.remove_handlers()  # and forget the kept tree
+    inspector.remove_handlers()  # and forget the inspection
     properties.unregister_props()
     _unregister_classes()
     _registered = False

@@ -10,11 +10,17 @@ Blender (core/tests/test_addon_jobs.py).
 
 import threading
 import time
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import backend, tree_cache
+from .compare import VIEWS as COMPARE_VIEWS
+from .compare import needs_counts
+
+# The per-pixel counters an A/B preview may show.
+COUNTERS = ("steps", "tests", "culled")
 
 
 class UserError(Exception):
@@ -86,6 +92,19 @@ class JobInput:
     # packets; the heat maps count whatever it says.
     count_steps: bool
     scene_name: str
+    # Tree B of an A/B comparison (a TreeChoice), None without one; B is
+    # rendered with A's camera, mode, threads and culling.
+    b: object = None
+    # The comparison's preview (compare.VIEWS).
+    compare_view: str = "split"
+
+
+@dataclass(frozen=True)
+class TreeChoice:
+    """A method and its build options."""
+
+    method: str
+    options: dict
 
 
 def make_camera(core, spec):
@@ -157,97 +176,51 @@ def plain(value):
     return value
 
 
-class Job(WorkerJob):
-    """Build & Render: build the tree (or re-use the cache's), render the
-    camera's view, optionally compare the camera rays' hits with Embree's.
+class TreeRun:
+    """One tree of a press: re-used from its cache or built, then rendered.
+    Holds that tree's progress (build, render) and whether it was re-used."""
 
-    With a `cache` (a tree_cache.TreeCache; the add-on passes its one), the
-    tree of the previous press is re-used while the triangles, the method and
-    the options that change the tree are the same, and the tree built here is
-    kept for the next press. Without one, every job builds.
-    """
-
-    title = "Building & Rendering"
-    cancelled_message = "BSP Lab: Build & Render cancelled; the previous preview is unchanged"
-
-    def __init__(self, core, inp, cache=None):
-        super().__init__(core, inp)
+    def __init__(self, core, choice, cache=None):
+        self.core = core
+        self.choice = choice
+        self.cache = cache
         self.build_progress = core.Progress()
         self.render_progress = core.Progress()
-        self.cache = cache
         # Read now, on the main thread: a clear() after this (a file loaded
         # while the job runs) makes the cache refuse what the job would keep.
         self._generation = cache.generation() if cache is not None else None
-        self._key = None
+        self.key = None
         self.reused = False
         self.fingerprint_seconds = None
+        # The tree rendered with, weakly: its cache owns it (the ray inspector).
+        self.tree_ref = None
 
-    def _check_cancelled(self):
-        if self.cancelled:
-            raise self.core.Cancelled("cancelled")
-
-    def _tree(self):
-        """The cache's tree when it was built for this input, else a new one."""
-        core, inp = self.core, self.input
+    def tree(self, triangles, other=None, other_tree=None):
+        """The cache's tree when it was built for this input, `other_tree`
+        when `other` (a TreeRun) chose the same tree (B = A), else a new one."""
+        choice = self.choice
+        if other is not None and _same_tree(choice, other.choice):
+            self.reused = True
+            return other_tree
         if self.cache is not None:
             start = time.perf_counter()
-            self._key = tree_cache.tree_key(inp.triangles, inp.method, inp.options)
+            self.key = tree_cache.tree_key(triangles, choice.method, choice.options)
             self.fingerprint_seconds = time.perf_counter() - start
-            tree = self.cache.tree(self._key)
+            tree = self.cache.tree(self.key)
             if tree is not None:
                 self.reused = True
                 return tree
-        tree = core.build(inp.triangles, method=inp.method,
-                          progress=self.build_progress, **inp.options)
+        tree = self.core.build(triangles, method=choice.method,
+                               progress=self.build_progress, **choice.options)
         if self.cache is not None:
             # Kept before rendering: a cancelled render leaves a good tree.
-            self.cache.keep_tree(self._key, tree, self._generation)
+            self.cache.keep_tree(self.key, tree, self._generation)
         return tree
 
-    def _embree_scene(self, triangles):
-        """The Embree tracer of the triangles and whether it was re-used."""
-        geometry = self._key.geometry
-        tracer = self.cache.embree(geometry)
-        if tracer is not None:
-            return tracer, True
-        tracer = self.core.oracle.EmbreeTracer(triangles)
-        self.cache.keep_embree(geometry, tracer, self._generation)
-        return tracer, False
-
-    def _compute(self):
-        core, inp = self.core, self.input
-        cam = make_camera(core, inp.camera)
-        self._check_cancelled()
-        tree = self._tree()
-        self._check_cancelled()
-        image, render_stats = core.render(tree, cam, inp.camera.width, inp.camera.height,
-                                          mode=inp.mode, threads=inp.threads,
-                                          cull=inp.cull or inp.mode == "heat_culled",
-                                          # The panel's Steps / Tests per Ray: counted
-                                          # in the same trace, or None: render()'s
-                                          # default (packets where the mode allows).
-                                          counters=True if inp.count_steps else None,
-                                          progress=self.render_progress)
-        self._check_cancelled()
-        render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
-                            mode=inp.mode, camera=inp.camera.name)
-        stats = {
-            "scene": {"triangles": len(inp.triangles), "objects": inp.objects,
-                      "instances": inp.instances},
-            # A re-used tree's own statistics, build_seconds included: the
-            # time of the press that built it.
-            "build": dict(tree.stats, reused=self.reused,
-                          fingerprint_seconds=self.fingerprint_seconds),
-            "render": render_stats,
-        }
-        if inp.compare_with_embree:
-            embree_scene = self._embree_scene if self.cache is not None else None
-            stats["embree"] = compare_with_embree(core, tree, cam, inp, embree_scene)
-            self._check_cancelled()
-        return {"image": np.asarray(image, dtype=np.float32), "stats": plain(stats)}
+    def keep_embree(self, tracer):
+        self.cache.keep_embree(self.key.geometry, tracer, self._generation)
 
     def cancel(self):
-        super().cancel()
         self.build_progress.cancel()
         self.render_progress.cancel()
 
@@ -256,6 +229,151 @@ class Job(WorkerJob):
             return self.render_progress.value
         # Building usually dominates; weigh it accordingly.
         return min(1.0, 0.6 * self.build_progress.value + 0.4 * self.render_progress.value)
+
+
+def _same_tree(one, other):
+    """Whether two TreeChoices give the same tree (see tree_cache.tree_key)."""
+    def kept(choice):
+        return {name: value for name, value in choice.options.items()
+                if name not in tree_cache.NOT_TREE_OPTIONS}
+    return one.method == other.method and kept(one) == kept(other)
+
+
+class Job(WorkerJob):
+    """Build & Render: build the tree (or re-use the cache's), render the
+    camera's view, optionally compare the camera rays' hits with Embree's.
+
+    With a `cache` (a tree_cache.TreeCache; the add-on passes its one), the
+    tree of the previous press is re-used while the triangles, the method and
+    the options that change the tree are the same, and the tree built here is
+    kept for the next press. Without one, every job builds.
+
+    With `inp.b` (A/B comparison) a second tree, B, is built (kept in
+    `cache_b`, or A's own tree when B chose the same) and rendered the same
+    way; the result then also holds B's image and statistics, and the
+    per-pixel counters of both when the preview needs them (compare.py).
+    """
+
+    title = "Building & Rendering"
+    cancelled_message = "BSP Lab: Build & Render cancelled; the previous preview is unchanged"
+
+    def __init__(self, core, inp, cache=None, cache_b=None):
+        super().__init__(core, inp)
+        # (No input: a job made only to read its report.)
+        self.a = TreeRun(core, TreeChoice(inp.method, inp.options) if inp else None, cache)
+        self.b = TreeRun(core, inp.b, cache_b) if inp and inp.b is not None else None
+        self.build_progress = self.a.build_progress
+        self.render_progress = self.a.render_progress
+        self.cache = cache
+
+    @property
+    def reused(self):
+        return self.a.reused
+
+    @property
+    def fingerprint_seconds(self):
+        return self.a.fingerprint_seconds
+
+    @property
+    def _key(self):
+        """A's TreeKey (None before it was computed)."""
+        return self.a.key
+
+    def _runs(self):
+        return [run for run in (self.a, self.b) if run is not None]
+
+    def _check_cancelled(self):
+        if self.cancelled:
+            raise self.core.Cancelled("cancelled")
+
+    def _embree_scene(self, triangles):
+        """The Embree tracer of the triangles and whether it was re-used."""
+        tracer = self.cache.embree(self.a.key.geometry)
+        if tracer is not None:
+            return tracer, True
+        tracer = self.core.oracle.EmbreeTracer(triangles)
+        self.a.keep_embree(tracer)
+        return tracer, False
+
+    def _render(self, run, tree, cam):
+        """(image, statistics) of one tree: the build's, the render's and
+        Embree's comparison if asked for."""
+        inp = self.input
+        # A difference view is about the counts: both trees count.
+        counted = inp.count_steps or (inp.b is not None and
+                                      COMPARE_VIEWS.get(inp.compare_view) is not None)
+        image, render_stats = self.core.render(
+            tree, cam, inp.camera.width, inp.camera.height, mode=inp.mode,
+            threads=inp.threads, cull=self._cull(),
+            # The panel's Steps / Tests per Ray: counted in the same trace,
+            # or None: render()'s default (packets where the mode allows).
+            counters=True if counted else None, progress=run.render_progress)
+        self._check_cancelled()
+        render_stats = dict(render_stats, width=inp.camera.width, height=inp.camera.height,
+                            mode=inp.mode, camera=inp.camera.name)
+        stats = {
+            # A re-used tree's own statistics, build_seconds included: the
+            # time of the press that built it.
+            "build": dict(tree.stats, reused=run.reused,
+                          fingerprint_seconds=run.fingerprint_seconds),
+            "render": render_stats,
+        }
+        if inp.compare_with_embree:
+            embree_scene = self._embree_scene if self.cache is not None else None
+            stats["embree"] = compare_with_embree(self.core, tree, cam, inp, embree_scene)
+            self._check_cancelled()
+        return np.asarray(image, dtype=np.float32), stats
+
+    def _cull(self):
+        return self.input.cull or self.input.mode == "heat_culled"
+
+    def _counts(self, tree, cam):
+        """The (H, W) per-pixel counters of the camera rays (deterministic:
+        the very counts the render saw)."""
+        inp = self.input
+        origins, directions = cam.rays(inp.camera.width, inp.camera.height)
+        hits = tree.intersect(origins, directions, threads=inp.threads, cull=self._cull(),
+                              counters=True)
+        shape = (inp.camera.height, inp.camera.width)
+        return {name: np.asarray(hits[name]).reshape(shape) for name in COUNTERS}
+
+    def _compute(self):
+        core, inp = self.core, self.input
+        cam = make_camera(core, inp.camera)
+        self._check_cancelled()
+        tree = self.a.tree(inp.triangles)
+        self.a.tree_ref = weakref.ref(tree)
+        self._check_cancelled()
+        image, stats = self._render(self.a, tree, cam)
+        result = {"image": image}
+        stats = dict({"scene": {"triangles": len(inp.triangles), "objects": inp.objects,
+                                "instances": inp.instances}}, **stats)
+        if self.b is not None:
+            try:
+                tree_b = self.b.tree(inp.triangles, other=self.a, other_tree=tree)
+            except (ValueError, TypeError) as ex:
+                # The core's checks of B's options: say it is B's.
+                raise UserError("Tree B cannot be built: {}".format(ex)) from ex
+            self.b.tree_ref = weakref.ref(tree_b)
+            self._check_cancelled()
+            result["b_image"], stats["b"] = self._render(self.b, tree_b, cam)
+            stats["compare"] = {"view": inp.compare_view, "a_options": inp.options,
+                                "b_method": inp.b.method,
+                                "b_options": inp.b.options}
+            if needs_counts(inp.mode, inp.compare_view):
+                result["counts"] = {"a": self._counts(tree, cam), "b": self._counts(tree_b, cam)}
+                self._check_cancelled()
+        result["stats"] = plain(stats)
+        return result
+
+    def cancel(self):
+        super().cancel()
+        for run in self._runs():
+            run.cancel()
+
+    def fraction(self):
+        runs = self._runs()
+        return sum(run.fraction() for run in runs) / len(runs)
 
 
 def error_message(core, ex):

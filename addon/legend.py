@@ -38,15 +38,19 @@ def heat_scale_top(mode, render_stats):
     return max(int(largest), 1)
 
 
-def colour_bar_strip(width, top, ramp, caption, scale=1):
-    """An (h, width, 4) strip: the ramp from 0 (left, labelled "0") to `top`
-    (right, labelled with it) and the caption (the unit) below it.
+def colour_bar_strip(width, top, ramp, caption, scale=1, low="0", middle=None):
+    """An (h, width, 4) strip: the ramp from `low` (left, labelled with it;
+    0 by default) to `top` (right, labelled with it) and the caption (the
+    unit) below it. `middle`, if given, labels the bar's centre on a row of
+    its own under the bar (the 0 of a diverging bar).
     `ramp(x)` gives the (N, 3) colours of values x in [0, 1]."""
-    lo_text, hi_text = "0", str(int(top))
+    lo_text, hi_text = str(low), str(int(top))
     lo_w, text_h = font.text_size(lo_text, scale)
     hi_w, _ = font.text_size(hi_text, scale)
     pad = PAD * scale
-    height = 3 * pad + 2 * text_h
+    # The caption's row, below the bar (and below the middle label if any).
+    caption_y = 2 * pad + text_h + (0 if middle is None else pad + text_h)
+    height = caption_y + text_h + pad
     strip = np.empty((height, width, 4), dtype=np.float32)
     strip[..., :3] = STRIP_BACKGROUND
     strip[..., 3] = 1.0
@@ -57,14 +61,17 @@ def colour_bar_strip(width, top, ramp, caption, scale=1):
     strip[pad:pad + text_h, x0:x1, :3] = np.asarray(ramp(xs), dtype=np.float32)[None]
     font.draw_text(strip, lo_text, pad, pad, TEXT, scale)
     font.draw_text(strip, hi_text, width - pad, pad, TEXT, scale, anchor="right")
-    font.draw_text(strip, caption, width // 2, 2 * pad + text_h, TEXT, scale, anchor="centre")
+    if middle is not None:
+        font.draw_text(strip, str(middle), (x0 + x1) // 2, 2 * pad + text_h, TEXT, scale,
+                       anchor="centre")
+    font.draw_text(strip, caption, width // 2, caption_y, TEXT, scale, anchor="centre")
     return strip
 
 
-def strip_min_width(top, caption, scale):
+def strip_min_width(top, caption, scale, low="0"):
     """The narrowest strip whose bar, labels and caption all fit."""
     pad = PAD * scale
-    labels = font.text_size("0", scale)[0] + font.text_size(str(int(top)), scale)[0]
+    labels = font.text_size(str(low), scale)[0] + font.text_size(str(int(top)), scale)[0]
     bar = 40 * scale
     return max(labels + bar + 4 * pad, font.text_size(caption, scale)[0] + 2 * pad)
 
@@ -77,11 +84,17 @@ def with_heat_bar(image, mode, render_stats, ramp):
     top = heat_scale_top(mode, render_stats)
     if top is None:
         return image
+    return with_colour_bar(image, top, ramp, HEAT_UNITS[mode][1])
+
+
+def with_colour_bar(image, top, ramp, caption, low="0", middle=None):
+    """The image with a colour bar strip (see colour_bar_strip) below it, the
+    image's pixels kept at the top left and an image narrower than the bar
+    padded on the right with the background."""
     height, width = image.shape[:2]
-    caption = HEAT_UNITS[mode][1]
     scale = text_scale(width)
-    full_width = max(width, strip_min_width(top, caption, scale))
-    strip = colour_bar_strip(full_width, top, ramp, caption, scale)
+    full_width = max(width, strip_min_width(top, caption, scale, low))
+    strip = colour_bar_strip(full_width, top, ramp, caption, scale, low, middle)
     out = np.empty((height + strip.shape[0], full_width, 4), dtype=np.float32)
     out[:height, :, :3] = STRIP_BACKGROUND
     out[:height, :, 3] = 1.0
@@ -90,7 +103,9 @@ def with_heat_bar(image, mode, render_stats, ramp):
     return out
 
 
-SAMPLE = 14  # length of the line sample beside each name
+SAMPLE = 15  # length of the line sample beside each name: one and a half dashes
+# A dashed line (the Sweep K plot's levels): DASH px drawn of every DASH_PERIOD.
+DASH, DASH_PERIOD = 5, 10
 
 
 def legend_size(names, scale=1):
@@ -102,7 +117,8 @@ def legend_size(names, scale=1):
 
 def draw_legend(img, x, y, entries, scale=1):
     """A framed legend at (x, y) (its top left): one row per (name, rgb, dashed)
-    with a sample line (dashed: a row of dots) and the name, both in its colour."""
+    with a sample line (dashed as the plot's levels: DASH, DASH_PERIOD) and the
+    name, both in its colour."""
     w, h = legend_size([name for name, _, _ in entries], scale)
     pad = PAD * scale
     img[y:y + h, x:x + w, :3] = 1.0
@@ -114,8 +130,8 @@ def draw_legend(img, x, y, entries, scale=1):
         sx = x + pad
         sample = img[mid - scale:mid + scale, sx:sx + SAMPLE * scale, :3]
         if dashed:
-            sample[:, ::4 * scale] = rgb
-            sample[:, 1::4 * scale] = rgb
+            for start in range(0, sample.shape[1], DASH_PERIOD * scale):
+                sample[:, start:start + DASH * scale] = rgb
         else:
             sample[:] = rgb
         font.draw_text(img, name, sx + SAMPLE * scale + pad, top, rgb, scale)

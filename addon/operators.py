@@ -13,11 +13,12 @@ import traceback
 
 import bpy
 
-from . import backend, camera, extract, legend, preview, sweep, tree_cache
+from . import (backend, camera, compare, extract, inspector_store, legend, preview, sweep,
+               tree_cache)
 # The worker side (bpy-free, tested without Blender); re-exported because the
 # operators and the Blender tests name them here.
-from .jobs import (Job, JobInput, UserError, check_result, error_message,  # noqa: F401
-                   failure_report, foreign_embree_library, make_camera)
+from .jobs import (Job, JobInput, TreeChoice, UserError, check_result,  # noqa: F401
+                   error_message, failure_report, foreign_embree_library, make_camera)
 
 
 # The one job in flight, if any; the panel reads its progress.
@@ -26,6 +27,9 @@ _active_job = None
 # The last Build & Render's tree, re-used while the scene's triangles and the
 # build options are unchanged (see tree_cache.py).
 _tree_cache = tree_cache.TreeCache()
+# Tree B's of the A/B comparison, kept the same way (and forgotten when a
+# press compares with no B).
+_tree_cache_b = tree_cache.TreeCache()
 
 
 def active_job():
@@ -37,11 +41,17 @@ def kept_tree_cache():
     return _tree_cache
 
 
+def kept_tree_cache_b():
+    """The TreeCache of the A/B comparison's tree B."""
+    return _tree_cache_b
+
+
 @bpy.app.handlers.persistent
 def forget_kept_tree(*_args):
     """load_pre handler (and unregister): a tree of the previous file must
     never be re-used for the next, nor hold its memory."""
     _tree_cache.clear()
+    _tree_cache_b.clear()
 
 
 def add_handlers():
@@ -82,34 +92,57 @@ def read_camera_and_geometry(context, core):
     return cam, geometry
 
 
+def checked_choice(methods, settings, tree=""):
+    """The TreeChoice of `settings` (A's or B's: a method and its options);
+    raise UserError for an unknown method or a K outside the method's range.
+    `tree` ("Tree B: ") starts the message."""
+    method = settings.method
+    if method not in methods:
+        raise UserError("{}Unknown tree method '{}'".format(tree, method))
+    info = methods[method]
+    params = info.get("params", ())
+    min_k, max_k = info.get("min_k"), info.get("max_k")
+    if "k" in params and min_k is not None and not min_k <= settings.k <= max_k:
+        raise UserError("{}K must be in {}..{} for {}, not {}".format(
+            tree, min_k, max_k, info.get("label", method), settings.k))
+    return TreeChoice(method, settings.build_options(params))
+
+
+def read_tree_b(scene, methods):
+    """Tree B's TreeChoice when "Compare with B" is on, else None. B is built
+    with A's thread count."""
+    compare = scene.bsplab_compare
+    if not compare.enabled:
+        return None
+    choice = checked_choice(methods, compare, tree="Tree B: ")
+    if "threads" not in methods[choice.method].get("params", ()):
+        return choice
+    return TreeChoice(choice.method, dict(choice.options, threads=scene.bsplab.threads))
+
+
 def read_scene(context, core):
     """Copy everything the job needs out of bpy; raise UserError if unusable."""
     scene = context.scene
     settings = scene.bsplab
     methods = core.methods()
-    method = settings.method
-    if method not in methods:
-        raise UserError("Unknown tree method '{}'".format(method))
-    info = methods[method]
-    params = info.get("params", ())
-    min_k, max_k = info.get("min_k"), info.get("max_k")
-    if "k" in params and min_k is not None and not min_k <= settings.k <= max_k:
-        raise UserError("K must be in {}..{} for {}, not {}".format(
-            min_k, max_k, info.get("label", method), settings.k))
+    a = checked_choice(methods, settings)
+    b = read_tree_b(scene, methods)
     cam, geometry = read_camera_and_geometry(context, core)
     return JobInput(
         triangles=geometry.triangles,
         objects=geometry.objects,
         instances=geometry.instances,
         camera=cam,
-        method=method,
-        options=settings.build_options(params),
+        method=a.method,
+        options=a.options,
         mode=settings.render_mode,
         threads=settings.threads,
         cull=settings.cull,
         compare_with_embree=settings.compare_with_embree,
         count_steps=settings.count_steps,
         scene_name=scene.name,
+        b=b,
+        compare_view=scene.bsplab_compare.view,
     )
 
 
@@ -144,6 +177,10 @@ def preview_image(result):
     legacy add-on runs on a separately installed core): then the bar is left
     out rather than the render lost."""
     render = result["stats"]["render"]
+    if "b" in result["stats"]:
+        return compare.preview(result["image"], result["b_image"], result.get("counts"),
+                               render["mode"], result["stats"]["compare"]["view"],
+                               backend.heat_ramp())
     try:
         return legend.with_heat_bar(result["image"], render["mode"], render,
                                     backend.heat_ramp())
@@ -318,14 +355,23 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
     bl_label = "Build & Render"
 
     def make_job(self, context, core):
-        return Job(core, read_scene(context, core), cache=_tree_cache)
+        inp = read_scene(context, core)
+        if inp.b is None:
+            _tree_cache_b.clear()  # no B: don't hold its memory
+        job = Job(core, inp, cache=_tree_cache, cache_b=_tree_cache_b)
+        inspector_store.build_started(job, context.view_layer)
+        return job
 
     def apply(self, context, scene, job):
         try:
             check_result(job.result)
         except UserError as ex:
             return self._fail(str(ex))
-        apply_result(scene, job.result)
+        try:
+            apply_result(scene, job.result)
+        except ValueError as ex:  # an A/B preview too narrow for its split
+            return self._fail("BSP Lab cannot show the preview: {}".format(ex))
+        inspector_store.remember_build(scene, job, bpy.data.images[preview.IMAGE_NAME])
         stats = job.result["stats"]
         build = stats["build"]
         built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")
@@ -333,8 +379,20 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
         self.report({'INFO'}, ("BSP Lab: {} triangles, {} nodes, " + built + ", rendered in {:.3f} s")
                     .format(stats["scene"]["triangles"], build.get("nodes", "?"),
                             build.get("build_seconds", 0.0),
-                            stats["render"].get("seconds", 0.0)))
+                            stats["render"].get("seconds", 0.0))
+                    + b_report(stats))
         return {'FINISHED'}
+
+
+def b_report(stats):
+    """The A/B part of Build & Render's report ("" without B)."""
+    if "b" not in stats:
+        return ""
+    build = stats["b"]["build"]
+    return "; B: {} nodes, {}, rendered in {:.3f} s".format(
+        build.get("nodes", "?"), "tree reused" if build.get("reused") else
+        "built in {:.3f} s".format(build.get("build_seconds", 0.0)),
+        stats["b"]["render"].get("seconds", 0.0))
 
 
 class BSPLAB_OT_sweep_k(JobOperator, bpy.types.Operator):

@@ -76,10 +76,15 @@ SWEEP_K_MAX = OPTION_SCHEMA["k"]["max"] if "k" in OPTION_SCHEMA else INT_PROPERT
 
 def _method_enum_items(_self, _context):
     global _method_items
-    _method_items = [
+    items = [
         (name, info.get("label", name), info.get("description", ""))
         for name, info in backend.methods().items()
     ]
+    # Keep the list Blender already points to while it is unchanged: A's and
+    # B's method enums share it, and replacing it under one would free the
+    # strings the other shows.
+    if items != _method_items:
+        _method_items = items
     return _method_items
 
 
@@ -201,7 +206,54 @@ class BSPLabSettings(bpy.types.PropertyGroup):
 
     def build_options(self, params):
         """Keyword options for `bsplab.build` limited to the method's params."""
-        return {name: getattr(self, name) for name in BUILD_OPTIONS if name in params}
+        return _build_options(self, BUILD_OPTIONS, params)
+
+
+def _build_options(settings, names, params):
+    return {name: getattr(settings, name) for name in names if name in params}
+
+
+# The build options but the thread count, which changes no tree: the panel
+# draws A's threads with the render settings, and B is built with A's.
+TREE_OPTIONS = tuple(name for name in BUILD_OPTIONS if name != "threads")
+
+COMPARE_VIEWS = (
+    ('split', "Split", "A's image left, B's right, a magenta line between"),
+    ('diff_steps', "Steps B - A",
+     "Per pixel B's traversal steps minus A's: blue where B steps less, red where more, "
+     "white where equal"),
+    ('diff_tests', "Tests B - A",
+     "Per pixel B's triangle tests minus A's: blue where B tests less, red where more, "
+     "white where equal"),
+)
+
+
+class BSPLabCompareSettings(bpy.types.PropertyGroup):
+    """Tree B of the A/B comparison (`Scene.bsplab_compare`): a method and its
+    options, offered from the same method table and option registry as A's."""
+
+    enabled: BoolProperty(
+        name="Compare with B",
+        description="Build & Render also builds and renders tree B (same camera, mode, threads "
+                    "and culling) and shows A and B side by side or their difference",
+        default=False,
+    )
+    method: EnumProperty(
+        name="Method",
+        description="Tree B's construction method (from the core's method table)",
+        items=_method_enum_items,
+        update=_method_changed,
+    )
+    view: EnumProperty(
+        name="View",
+        description="What the A/B preview shows",
+        items=COMPARE_VIEWS,
+        default='split',
+    )
+
+    def build_options(self, params):
+        """B's keyword options for `bsplab.build`, without the thread count."""
+        return _build_options(self, TREE_OPTIONS, params)
 
 
 class BSPLabJobState(bpy.types.PropertyGroup):
@@ -214,25 +266,29 @@ class BSPLabJobState(bpy.types.PropertyGroup):
     )
 
 
-def _add_option_properties():
+def _add_option_properties(cls, names):
     """The build options' properties, added before the class is registered."""
-    for name in BUILD_OPTIONS:
-        BSPLabSettings.__annotations__[name] = option_property(OPTION_SCHEMA[name])
+    for name in names:
+        cls.__annotations__[name] = option_property(OPTION_SCHEMA[name])
 
 
-_add_option_properties()
+_add_option_properties(BSPLabSettings, BUILD_OPTIONS)
+_add_option_properties(BSPLabCompareSettings, TREE_OPTIONS)
 
 classes = (
     BSPLabSettings,
+    BSPLabCompareSettings,
     BSPLabJobState,
 )
 
 
 def register_props():
     bpy.types.Scene.bsplab = bpy.props.PointerProperty(type=BSPLabSettings)
+    bpy.types.Scene.bsplab_compare = bpy.props.PointerProperty(type=BSPLabCompareSettings)
     bpy.types.WindowManager.bsplab_job = bpy.props.PointerProperty(type=BSPLabJobState)
 
 
 def unregister_props():
     del bpy.types.WindowManager.bsplab_job
+    del bpy.types.Scene.bsplab_compare
     del bpy.types.Scene.bsplab

@@ -156,6 +156,68 @@ def sections(stats):
     return out
 
 
+def _ratio(a, b):
+    """B / A as text; "-" when either is missing or A is 0."""
+    if a is None or b is None or not a:
+        return "-"
+    return "{:.2f}".format(b / a)
+
+
+def _mrays(render):
+    rate = render.get("rays_per_second")
+    return None if rate is None else rate / 1e6
+
+
+# The A/B grid's rows: label, how to read the value of one tree's statistics
+# (its "build", "render" and "embree" sections) and how to show it.
+COMPARE_ROWS = (
+    ("Build", lambda s: s["build"].get("build_seconds"), _seconds),
+    ("Nodes", lambda s: s["build"].get("nodes"), _count),
+    ("Memory", lambda s: s["build"].get("bytes"), _bytes),
+    ("Steps/Ray", lambda s: s["render"].get("mean_steps"), _number),
+    ("Tests/Ray", lambda s: s["render"].get("mean_tests"), _number),
+    ("Mray/s", lambda s: _mrays(s["render"]), _number),
+    ("x Embree", lambda s: (s.get("embree") or {}).get("time_ratio"), _number),
+)
+
+
+def tree_name(method, options):
+    """A tree's method with its K, if it has one ("bsp_wn+kd K=4")."""
+    k = (options or {}).get("k")
+    return method if k is None else "{} K={}".format(method, k)
+
+
+def compare_grid(stats):
+    """The A/B comparison as (names, rows): names = (A's tree, B's tree) and
+    rows = [(label, A, B, B/A), ...]; None when the run had no tree B.
+    Sizes and counts of the same tree give a ratio of exactly 1; times are
+    measured for each tree and vary."""
+    if not stats or "b" not in stats:
+        return None
+    compare = stats.get("compare", {})
+    a, b = stats, stats["b"]
+    names = (tree_name(str(a["build"].get("method", "-")), compare.get("a_options")),
+             tree_name(compare.get("b_method", b["build"].get("method", "-")),
+                       compare.get("b_options")))
+    rows = []
+    for label, value, show in COMPARE_ROWS:
+        va, vb = value(a), value(b)
+        rows.append((label, show(va), show(vb), _ratio(va, vb)))
+    return names, rows
+
+
+def compare_table(stats):
+    """The A/B grid as plain text lines ([] without B)."""
+    grid = compare_grid(stats)
+    if grid is None:
+        return []
+    (name_a, name_b), rows = grid
+    lines = ["A / B", "  A: {}".format(name_a), "  B: {}".format(name_b)]
+    for row in [("", "A", "B", "B/A")] + rows:
+        lines.append("  {:<10}{:>11}{:>11}{:>7}".format(*row))
+    return lines
+
+
 def warnings(stats):
     """The tree's warnings (a degenerate tree: one huge leaf, or a tree far
     too small for the scene), each as a sentence; [] when the tree is sound."""
@@ -183,4 +245,4 @@ def table(stats):
         if title == "Build":
             for warning in warnings(stats):
                 lines.append("  WARNING: {}".format(warning))
-    return "\n".join(lines)
+    return "\n".join(lines + compare_table(stats))

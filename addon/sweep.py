@@ -209,8 +209,8 @@ def plot(table, width, height):
     _axes(img, xy, (k_lo, k_hi), (v_lo, v_hi), (left, top, right, bottom))
     for m, v in flat:  # kd and the methods without K: dashed levels in their colour
         y, c = xy(k_lo, v)[1], dict(COLOURS)[m["colour"]]
-        for x in range(left, right, 10):
-            _line(img, x, y, min(x + 5, right), y, c, 2)
+        for x in range(left, right, legend.DASH_PERIOD):  # 2 px thick, as _line
+            img[y - 1:y + 1, x:min(x + legend.DASH, right), :3] = c
     for m, pts in series:
         c = dict(COLOURS)[m["colour"]]
         for a, b in zip(pts, pts[1:]):

@@ -35,14 +35,8 @@ class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
             box.label(text="Core module 'bsplab' not installed", icon='ERROR')
 
         layout.prop(settings, "method")
-        methods = backend.methods()
-        params = methods.get(settings.method, {}).get("params", ())
-        col = layout.column(align=True)
-        for name in properties.BUILD_OPTIONS:
-            # Threads are drawn below with the render settings.
-            if name not in params or name == "threads":
-                continue
-            col.prop(settings, name, text=SHORT_LABELS[name])
+        # Threads are drawn below with the render settings.
+        draw_options(layout, settings, settings.method, properties.TREE_OPTIONS)
 
         layout.separator()
         col = layout.column()
@@ -79,6 +73,49 @@ class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
         layout.label(text="Esc to cancel")
 
 
+def draw_options(layout, settings, method, names):
+    """The method's build options among `names`, with the core's short labels."""
+    params = backend.methods().get(method, {}).get("params", ())
+    col = layout.column(align=True)
+    for name in names:
+        if name in params:
+            col.prop(settings, name, text=SHORT_LABELS[name])
+
+
+class BSPLAB_PT_compare(BSPLabPanel, bpy.types.Panel):
+    """Tree B of the A/B comparison: its method, its options and the view."""
+
+    bl_label = "Compare A/B"
+    bl_idname = "BSPLAB_PT_compare"
+    bl_parent_id = "BSPLAB_PT_main"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.bsplab_compare, "enabled", text="")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        compare = context.scene.bsplab_compare
+        layout.active = compare.enabled
+        layout.prop(compare, "method", text="B")
+        draw_options(layout, compare, compare.method, properties.TREE_OPTIONS)
+        layout.prop(compare, "view")
+
+
+def draw_compare_grid(layout, grid):
+    """A, B and B/A side by side: four narrow columns fit the sidebar."""
+    (name_a, name_b), rows = grid
+    box = layout.box()
+    box.label(text="A: " + name_a)
+    box.label(text="B: " + name_b)
+    flow = box.grid_flow(row_major=True, columns=4, even_columns=False, align=True)
+    for cells in [("", "A", "B", "B/A")] + rows:
+        for text in cells:
+            flow.label(text=text)
+
+
 class BSPLAB_PT_stats(BSPLabPanel, bpy.types.Panel):
     bl_label = "Statistics"
     bl_idname = "BSPLAB_PT_stats"
@@ -90,6 +127,9 @@ class BSPLAB_PT_stats(BSPLabPanel, bpy.types.Panel):
         if not sections:
             layout.label(text="Press Build & Render", icon='INFO')
             return
+        grid = stats.compare_grid(context.scene.bsplab.stats)
+        if grid is not None:
+            draw_compare_grid(layout, grid)
         for title, rows in sections:
             box = layout.box()
             box.label(text=title)
@@ -161,6 +201,7 @@ def sweep_rows(table):
 
 classes = (
     BSPLAB_PT_main,
+    BSPLAB_PT_compare,
     BSPLAB_PT_stats,
     BSPLAB_PT_sweep,
 )

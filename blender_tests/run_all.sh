@@ -103,6 +103,8 @@ if [ "${BSPLAB_GUI_CHECK:-0}" = 1 ]; then
     rc=$?
     cat "$GUI_OUT/gui_check.json" 2>/dev/null || tail -n 30 "$LOGS/gui.txt"
     record "GUI check ($BLENDER_VERSION, Xvfb)" "$rc"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_compare.py -- "$GUI_OUT" > "$LOGS/gui_compare.txt" 2>&1; rc=$?; cat "$GUI_OUT/gui_check_compare.json" 2>/dev/null || tail -n 30 "$LOGS/gui_compare.txt"; record "GUI check A/B ($BLENDER_VERSION, Xvfb)" "$rc"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_inspector.py -- "$GUI_OUT" > "$LOGS/gui_inspector.txt" 2>&1; record "GUI check, ray inspector (see $GUI_OUT/gui_check_inspector.json)" $?
 fi
 
 log "summary"

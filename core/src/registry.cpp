@@ -148,14 +148,14 @@ std::vector<OptionSpec> make_option_specs() {
          .help = "Seed of the random choices of randomised methods"},
         // The ^Kd costs: Ize et al. (2008) price a general node at
         // alpha * K_i * (n - 1) + K_d with alpha = 0.1, and fall back to a
-        // constant K_d,BSP; general_cost = 2 K_d reflects that a general
-        // step (two dot products and a division) costs about twice a kd step
-        // (one subtraction and one multiplication) in our traversal.
+        // constant K_d,BSP; general_cost = 1.4 K_d is what `calibrate`
+        // measured for a general step of our traversal (K_gen/K_kd 1.35-1.40
+        // over three runs; docs/algorithms.md "Costs").
         {NUMBER_FIELD(alpha), .type = T::Float, .group = "bsp", .default_value = real(0.1),
          .min = whole(0), .max = real(1e3), .soft_max = 1.0, .label = "Alpha",
          .short_label = "Alpha",
          .help = "Per-triangle factor of a general (non-axis) node's traversal cost"},
-        {NUMBER_FIELD(general_cost), .type = T::Float, .group = "bsp", .default_value = real(2.0),
+        {NUMBER_FIELD(general_cost), .type = T::Float, .group = "bsp", .default_value = real(1.4),
          .min = whole(0), .max = real(1e6), .min_open = true, .soft_max = 10.0,
          .label = "General Cost", .short_label = "General",
          .help = "Traversal cost of a general (non-axis) node"},

@@ -1,8 +1,8 @@
 // One ray's walk through the tree, recorded step by step for the ray
 // inspector: the nodes it visits in order with the ray's range in each, the
 // triangles each leaf tests and what came of them, and the closest hit.
-// It follows the counting path of the single-ray kernel
-// (kernels/single_ray.hpp) rule for rule, so its hit is intersect()'s bit
+// It is the single-ray kernel's own loop (kernels/single_ray.hpp) with a
+// policy that records instead of counting, so its hit is intersect()'s bit
 // for bit and its counts are intersect()'s steps, tests and culled.
 #pragma once
 #include <cstdint>

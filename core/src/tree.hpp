@@ -137,7 +137,7 @@ struct BuildOptions {
     int fixed_set = 0;             // RBSP: 0 golden spiral, 1 k-DOP, 2 axes + spiral
     uint64_t seed = 1;
     float alpha = 0.1f;            // ^Kd: K_d,BSP = alpha K_i (n - 1) + K_d
-    float general_cost = 2.0f;     // ^Kd fallback: the constant K_d,BSP
+    float general_cost = 1.4f;     // ^Kd fallback: the constant K_d,BSP (measured)
     int cluster_iterations = 16;   // BSP_cn: k-means rounds at most
     int cluster_sample = 1024;     // BSP_cn: normals clustered per node at most
     int ize_candidates = 64;       // BSP_IZE: triangles whose planes are tried per node at most

@@ -180,6 +180,36 @@ def test_sweep_plot_has_axes_ticks_title_and_a_legend_in_each_colour():
     assert ink[:sweep.MARGIN_TOP].sum() > 100  # the title
 
 
+def _runs(mask):
+    """Lengths of the runs of True and of False along a 1-D mask."""
+    edges = np.flatnonzero(np.diff(mask.astype(np.int8))) + 1
+    return [len(r) for r in np.split(mask, edges)], bool(mask[0])
+
+
+def test_legend_dashes_like_the_plots_levels():
+    # kd's level is drawn dashed in the plot; its legend sample must show the
+    # same dashes (it once showed dots), and a solid entry a solid line.
+    img = _canvas(60, 200)
+    legend.draw_legend(img, 0, 0, [("kd", INK, True), ("bsp", (0.0, 0.0, 1.0), False)])
+    mid = legend.PAD + font.GLYPH_H // 2
+    x0 = legend.PAD
+    dashed = _ink(img)[mid, x0:x0 + legend.SAMPLE]
+    runs, starts_inked = _runs(dashed)
+    assert starts_inked and runs[0] == legend.DASH
+    assert runs[1] == legend.DASH_PERIOD - legend.DASH
+    solid = _ink(img, (0.0, 0.0, 1.0))[mid + font.LINE_H, x0:x0 + legend.SAMPLE]
+    assert solid.all()
+    # The plot's kd level: the same dash and gap lengths along its row.
+    table = _table()
+    w, h = sweep.PLOT_SIZE
+    plot = sweep.plot(table, w, h)
+    kd = next(m for m in table["methods"] if m["name"] == "kd")
+    row = _ink(plot, dict(sweep.COLOURS)[kd["colour"]])[:, sweep.MARGIN_LEFT + 1:w // 2]
+    y = int(np.argmax(row.sum(axis=1)))
+    runs, _ = _runs(row[y])
+    assert legend.DASH in runs[1:-1] and legend.DASH_PERIOD - legend.DASH in runs[1:-1]
+
+
 def test_tick_step():
     assert [sweep._tick_step(s, 8) for s in (5, 8, 9, 30, 70, 200)] == [1, 1, 2, 5, 10, 50]
 

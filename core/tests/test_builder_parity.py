@@ -5,8 +5,8 @@ which is what the kd builder (Wald & Havran) does with its presorted events.
 The two must then build trees of the same quality: SAH cost within 1 % and
 triangle tests per ray within 2 % (primary rays and ambient-occlusion rays)
 on every shared scene and on a generated one. They are not bit-identical:
-the kd builder pads the bounds of clipped triangles outwards, the sweep
-clips exact polygons, so plane positions differ by ulps and a few
+the kd builder rounds the bounds of clipped triangles outwards to float, the
+sweep clips polygons in double, so plane positions differ by ulps and a few
 references differ; what the rays pay must not.
 
 Sibenik and the generated room are in the fast set; the other shared scenes
@@ -30,20 +30,8 @@ SWEEP_AXES_ONLY = ("bsp_cn+", {"k": 3})
 SIDE = 160              # primary rays per image side
 FAST = {"gen:room", "shared:sibenik"}
 
-# Sponza: kd's clipped-triangle bounds carry an outward pad (clip.cpp,
-# kRelErr = 2^-21 of the coordinates) that makes triangles merely touching a
-# plane straddle it; there the kd tree holds 5 % more references and rays
-# make 5-6 % more tests than in the sweep's tree (with the pad set to zero the
-# two agree within 0.2 %). The kd builder is another part of the work: strict,
-# so the marker goes when its padding changes.
-KD_PADDING_COSTS_TESTS = {"shared:sponza_dabrovic"}
-
-
-def _param(scene_id: str, per_ray: bool = False):
+def _param(scene_id: str):
     marks = [] if scene_id in FAST else [pytest.mark.slow]
-    if per_ray and scene_id in KD_PADDING_COSTS_TESTS:
-        marks.append(pytest.mark.xfail(
-            strict=True, reason="kd's padded clip bounds cost it 5-6 % more tests here"))
     return pytest.param(scene_id, id=scene_id.split(":", 1)[1], marks=marks)
 
 
@@ -71,7 +59,7 @@ def test_sah_cost_matches_kd(scene_id):
         f"{kd.stats['sah_cost']:.3f} ({gap:+.2%})")
 
 
-@pytest.mark.parametrize("scene_id", [_param(s, per_ray=True) for s in SCENES])
+@pytest.mark.parametrize("scene_id", [_param(s) for s in SCENES])
 def test_tests_per_ray_match_kd(scene_id):
     tris, kd, sweep = _trees(scene_id)
     origins, directions = workloads.primary_rays(tris, SIDE, SIDE)

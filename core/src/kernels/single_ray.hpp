@@ -93,13 +93,20 @@ struct SegmentBox {
 
 // The counters are a compile-time policy of the traversal: CountEvery keeps
 // the heatmaps' and the statistics' counts of one ray, CountNothing is the
-// hits-only path, whose empty increments leave no counting code behind.
+// hits-only path, whose empty hooks leave no counting code behind. The hooks
+// say what the traversal does (a node visited over [t0, t1], a triangle
+// culled, skipped by the mailbox, tested, hit or missed), so that a policy
+// can also record the whole walk: trace_path.cpp's PathRecord does, for the
+// ray inspector, with this very loop.
 struct CountEvery {
     uint32_t steps = 0, general_steps = 0, tests = 0, culled = 0;
-    void step() { ++steps; }
+    void step(uint32_t /*node*/, float /*t0*/, float /*t1*/) { ++steps; }
     void general_step() { ++general_steps; }
-    void test() { ++tests; }
-    void cull() { ++culled; }
+    void cull(uint32_t /*prim*/) { ++culled; }
+    void seen(uint32_t /*prim*/) {}
+    void test(uint32_t /*prim*/) { ++tests; }
+    void hit(float /*t*/) {}
+    void miss() {}
     void store(const HitBatch& hits, size_t i) const {
         hits.steps[i] = steps;
         hits.general_steps[i] = general_steps;
@@ -109,10 +116,13 @@ struct CountEvery {
 };
 
 struct CountNothing {
-    void step() {}
+    void step(uint32_t, float, float) {}
     void general_step() {}
-    void test() {}
-    void cull() {}
+    void cull(uint32_t) {}
+    void seen(uint32_t) {}
+    void test(uint32_t) {}
+    void hit(float) {}
+    void miss() {}
     void store(const HitBatch&, size_t) const {}
 };
 
@@ -213,20 +223,26 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
             // still be hit in a later leaf that references it.
             const Box& b = tree.boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
             if (seg.misses(b)) {
-                count.cull();
+                count.cull(p);
                 continue;
             }
         }
-        if (mailbox.seen(p)) continue;
-        count.test();
+        if (mailbox.seen(p)) {
+            count.seen(p);
+            continue;
+        }
+        count.test(p);
         TriangleHit th;
         if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th)) {
+            count.hit(th.t);
             hit.t = th.t;
             hit.prim = int32_t(p);
             hit.u = th.u;
             hit.v = th.v;
             if constexpr (kBoxes != LeafBoxes::None)
                 seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+        } else {
+            count.miss();
         }
     }
 }
@@ -292,7 +308,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
 
     for (;;) {
         const Node node = nodes[index];
-        count.step();
+        count.step(index, t0, t1);
         if (kGeneral ? !node.is_leaf() : node.is_kd()) {
             // Both kinds reduce to: where the ray crosses the plane, and
             // which child it enters from. Before the crossing the ray is on
