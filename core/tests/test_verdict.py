@@ -84,6 +84,8 @@ def test_command_writes_page_and_record(tmp_path):
     assert verdict_report.main(out, ["room"], results=None, rounds=1, side=16) == 0
     record = json.loads((tmp_path / "data" / "verdict.json").read_text())
     assert [s["scene"] for s in record["scenes"]] == ["room"]
+    assert record["command"] == "python -m bsplab verdict"  # main's default
+    assert "Traced part (`python -m bsplab verdict`)" in out.read_text()
     assert "## 1. A general step" in out.read_text()
     # Without tracing the record beside the page is reused.
     assert verdict_report.main(out, trace=False) == 0

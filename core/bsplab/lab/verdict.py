@@ -151,7 +151,8 @@ DEFAULT_SCENES = ["bunny", "dragon_res2", "sportscar", "sibenik", "sponza_dabrov
                   "conference", "lost_empire"]
 
 
-def run(scenes: list[str], out_json: Path, rounds: int = 7, log=print, **overrides) -> dict:
+def run(scenes: list[str], out_json: Path, rounds: int = 7, log=print,
+        command: str = "", **overrides) -> dict:
     """Every scene's record in one JSON file (written after each scene, so a
     long run shows its progress)."""
     spec = experiment_spec(scenes, **overrides)
@@ -160,7 +161,8 @@ def run(scenes: list[str], out_json: Path, rounds: int = 7, log=print, **overrid
     start = time.time()
     record = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "machine": machine_info(),
               "load_start": load_average(), "rounds": rounds,
-              "width": spec.width, "height": spec.height, "scenes": []}
+              "width": spec.width, "height": spec.height, "command": command,
+              "scenes": []}
     for scene in spec.scenes:
         log(f"verdict: {scene}")
         record["scenes"].append(trace_scene(spec, scene, rounds=rounds))

@@ -229,7 +229,7 @@ def markdown(record: dict | None, rows: list[dict] | None, command: str) -> str:
     if record:
         load = ", ".join(f"{a:.1f} → {b:.1f}" for a, b in zip(record["load_start"] or [],
                                                               record["load_end"] or []))
-        out += [f"Traced part: {record['width']}×{record['height']} primary rays from the "
+        out += [f"Traced part (`{record.get('command', '?')}`): {record['width']}×{record['height']} primary rays from the "
                 f"results spec's camera and one AO ray per hit, {record['rounds']} rounds; "
                 f"{record['minutes']:.1f} min, started {record['started']}; load average "
                 f"(1/5/15 min) at start → end: {load} on {record['machine']['cores']} cores "
@@ -256,7 +256,7 @@ def markdown(record: dict | None, rows: list[dict] | None, command: str) -> str:
     if rows:
         fits = {w: cost_fit(rows, w) for w in ("primary", "ao")
                 if any(r["workload"] == w for r in rows)}
-        out += ["## 5. Steps, not tests, are most of kd's time", "",
+        out += ["## 5. What kd's tests cost, and the floor of saving them", "",
                 "The costs fitted to the results run's own trees (`calibrate`'s "
                 "least squares on the differences to kd, `benchmarks.fit_costs`):", "",
                 *cost_fit_lines(fits),
@@ -293,7 +293,8 @@ def main(out, scenes=None, results=None, rounds: int = 7, side: int | None = Non
         if not chosen:
             raise ValueError("no scene to trace: the shared scenes are not here; "
                              "name generated ones with --scenes (e.g. room spheres)")
-        record = verdict.run(chosen, data, rounds=rounds, width=side, height=side)
+        record = verdict.run(chosen, data, rounds=rounds, width=side, height=side,
+                             command=command)
     else:
         record = json.loads(data.read_text()) if data.exists() else None
     rows = read_rows(results) if results and Path(results).exists() else None
