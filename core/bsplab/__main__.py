@@ -1,5 +1,5 @@
 """Command line: `python -m bsplab {demo,bench,bench-family,bench-cull,bench-build,experiment,
-report,results,agree,calibrate,scenes,methods}`."""
+report,results,verdict,agree,calibrate,scenes,methods}`."""
 
 from __future__ import annotations
 
@@ -192,6 +192,14 @@ def cmd_results(args) -> int:
     return results.main(quick=args.quick, out=Path(args.out), fresh=not args.resume)
 
 
+def cmd_verdict(args) -> int:
+    from bsplab.lab import benchmarks, verdict_report
+    out = output_file(args.out, "--out", "verdict.md")
+    return verdict_report.main(out, args.scenes, args.results, rounds=args.rounds,
+                               side=args.side, trace=not args.skip_trace,
+                               command=benchmarks.command_line())
+
+
 def cmd_agree(args) -> int:
     import bsplab
     from bsplab import agreement
@@ -336,6 +344,19 @@ def main(argv=None) -> int:
     q.add_argument("--resume", action="store_true",
                    help="keep the finished cells of an interrupted run")
     q.set_defaults(func=cmd_results)
+
+    v = sub.add_parser("verdict", help="the experiments behind the results' discussion "
+                                       "(docs/verdict.md)")
+    v.add_argument("--scenes", nargs="+", help="default: the seven shared scenes here")
+    v.add_argument("--results", default="docs/data/results.csv",
+                   help="the results run whose rows sections 5-7 analyse")
+    v.add_argument("--rounds", type=whole(1), default=7, help="paired rounds (default 7)")
+    v.add_argument("--side", type=whole(1), help="primary rays: side x side (default: the "
+                                                "results spec's 256)")
+    v.add_argument("--skip-trace", action="store_true",
+                   help="reuse the last traced record (docs/data/verdict.json)")
+    v.add_argument("--out", default="docs/verdict.md")
+    v.set_defaults(func=cmd_verdict)
 
     a = sub.add_parser("agree", help="every method against Embree on the ray families "
                                      "(outside-in, axis-parallel, vertices, edges, planes, ...)")

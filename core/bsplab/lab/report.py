@@ -137,10 +137,29 @@ def machine_lines(meta: dict | None) -> list[str]:
     """Where the rows were measured, from the results file's JSON record."""
     if not meta:
         return []
-    mach = meta.get("runs", [{}])[-1].get("machine", {})
+    runs = meta.get("runs") or [{}]
+    # The last start that ran cells (a resumed run that only re-renders the
+    # page measured nothing: its load says nothing about the rows).
+    run = next((r for r in reversed(runs)
+                if r.get("cells_after", 1) > r.get("cells_before", 0)), runs[-1])
+    mach = run.get("machine", {})
     return [f"Machine: {mach.get('cpu', '?')}, {mach.get('cores', '?')} cores; "
             f"versions {mach.get('versions', {})}. Spec fingerprint "
-            f"`{meta.get('fingerprint', '?')}`.", ""]
+            f"`{meta.get('fingerprint', '?')}`." + load_sentence(run, mach.get("cores")), ""]
+
+
+def load_sentence(run: dict, cores) -> str:
+    """The run's duration and the machine's load around it, where recorded."""
+    start, end = run.get("load_start"), run.get("load_end")
+    if not start or not end:
+        return ""
+    minutes = f" took {run['seconds'] / 60:.0f} minutes" if "seconds" in run else ""
+    shared = (" (above the cores: other jobs shared the machine, which widens the min–max "
+              "spans; the paired medians and the counters are what to read)"
+              if max(start[0], end[0]) > (cores or 1) else "")
+    return (f" The run{minutes}, started {run.get('started', '?')}; load average "
+            f"(1/5/15 min) {' / '.join(map(str, start))} at the start and "
+            f"{' / '.join(map(str, end))} at the end on {cores} cores{shared}.")
 
 
 # A row's wrong hits, one column per traced path: the counting path's, then
@@ -425,9 +444,19 @@ def family_markdown(rows: list[dict], command: str, meta: dict | None = None) ->
     res = Results(rows)
     out = _header("Benchmark: the BSP family against kd and Embree", command, meta,
                   FAMILY_COLUMNS)
+    out += scope_lines(res)
     out += ["## Per scene and workload", ""] + summary_tables(res)
     out += ["## Kd and BSP nodes (the thesis's table 5.10 shape)", ""] + node_tables(res)
     return "\n".join(out) + "\n"
+
+
+def scope_lines(res: Results) -> list[str]:
+    """What the run covered: its scenes and K (the spec's full range, K = 3..10,
+    takes hours on two cores, so the docs page usually runs a subset)."""
+    ks = sorted({k for m in res.methods for k in res.ks(m) if k is not None})
+    return [f"Scope: {', '.join(scene_label(s) for s in res.scenes)}; K = "
+            f"{', '.join(map(str, ks))}; {len(res.methods)} methods. `make bench-family` runs "
+            "the spec's full K = 3..10 (about 400 trees, hours on the 2-core machine).", ""]
 
 
 def cull_markdown(rows: list[dict], command: str, meta: dict | None = None) -> str:

@@ -56,6 +56,16 @@ def machine_info() -> dict:
             "cores": os.cpu_count(), "system": platform.platform(), "versions": versions}
 
 
+def load_average() -> list[float] | None:
+    """The system's 1, 5 and 15 minute load averages (None where there are
+    none): kept with a run, because a load above the cores means other jobs
+    shared the machine while it was timed."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (AttributeError, OSError):
+        return None
+
+
 class ResultsFile:
     """Rows in `<out>.csv`, the run's record in `<out>.json`; resumable."""
 
@@ -104,13 +114,15 @@ class ResultsFile:
         # continued on another machine.
         meta.setdefault("runs", []).append({
             "started": time.strftime("%Y-%m-%d %H:%M:%S"), "command": " ".join(sys.argv),
-            "cells_before": len(self.done()), "machine": machine_info()})
+            "cells_before": len(self.done()), "machine": machine_info(),
+            "load_start": load_average()})
         self.meta.write_text(json.dumps(meta, indent=2))
 
     def finish(self, seconds: float) -> None:
         meta = self._meta()
         meta["runs"][-1].update(finished=time.strftime("%Y-%m-%d %H:%M:%S"),
-                                seconds=round(seconds, 3), cells_after=len(self.done()))
+                                seconds=round(seconds, 3), cells_after=len(self.done()),
+                                load_end=load_average())
         self.meta.write_text(json.dumps(meta, indent=2))
 
     @staticmethod
