@@ -5,6 +5,7 @@ ray's counts and its step-by-step list."""
 import bpy
 
 from . import inspector, inspector_store
+from .ui import BSPLabPanel
 
 # Steps listed before "... N more": a kd ray on a big scene walks 50-100
 # nodes, more than a sidebar shows usefully.
@@ -59,10 +60,7 @@ def draw_step(layout, cells):
     split.label(text=tests)
 
 
-class BSPLAB_PT_inspector(bpy.types.Panel):
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "BSP Lab"
+class BSPLAB_PT_inspector(BSPLabPanel, bpy.types.Panel):
     bl_label = "Ray Inspector"
     bl_idname = "BSPLAB_PT_inspector"
     bl_parent_id = "BSPLAB_PT_main"

@@ -274,11 +274,6 @@ class Job(WorkerJob):
     def fingerprint_seconds(self):
         return self.a.fingerprint_seconds
 
-    @property
-    def _key(self):
-        """A's TreeKey (None before it was computed)."""
-        return self.a.key
-
     def _runs(self):
         return [run for run in (self.a, self.b) if run is not None]
 

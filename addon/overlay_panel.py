@@ -4,18 +4,16 @@
 import bpy
 
 from . import overlay
+from .ui import BSPLabPanel
 
 KIND_COLOUR_PROPS = (("colour_x", "x"), ("colour_y", "y"), ("colour_z", "z"),
                      ("colour_general", "general"))
 NO_TREE_MESSAGE = "Build & Render first: the overlay draws the last built tree"
 
 
-class BSPLAB_PT_overlay(bpy.types.Panel):
+class BSPLAB_PT_overlay(BSPLabPanel, bpy.types.Panel):
     bl_label = "Tree Overlay"
     bl_idname = "BSPLAB_PT_overlay"
-    bl_space_type = 'VIEW_3D'
-    bl_region_type = 'UI'
-    bl_category = "BSP Lab"
     bl_parent_id = "BSPLAB_PT_main"
     bl_options = {'DEFAULT_CLOSED'}
 

@@ -346,7 +346,7 @@ def test_a_miss_forgets_the_kept_tree_before_building(scene):
     tris, cam = scene
     cache = tree_cache.TreeCache()
     first = _run_cached(cache, _input(tris, cam, options=KD_OPTIONS, compare_with_embree=False))
-    key = first._key
+    key = first.a.key
     assert cache.tree(key) is not None and len(cache) == 1
     other = tree_cache.tree_key(tris, "kd", dict(KD_OPTIONS, leaf_size=2))
     assert cache.tree(other) is None
@@ -375,7 +375,7 @@ def test_cancel_during_a_reused_render_keeps_the_tree(scene):
     assert isinstance(big.error, bsplab.Cancelled), big.error
     assert big.result is None and big.render_progress.value < 1.0
     # Still kept, and the next press re-uses it.
-    assert cache.tree(small._key) is not None
+    assert cache.tree(small.a.key) is not None
     again = _run_cached(cache, small.input)
     assert again.reused and np.array_equal(again.result["image"], small.result["image"])
 
