@@ -28,6 +28,8 @@ import bpy
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
+import gui_utils  # noqa: E402
+from gui_utils import areas  # noqa: E402
 
 OUT = pathlib.Path(sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else "/tmp/bsplab_gui")
 OUT.mkdir(parents=True, exist_ok=True)
@@ -40,11 +42,6 @@ def screenshot(name):
     path = str(OUT / (name + ".png"))
     subprocess.run(["import", "-window", "root", path], check=False)
     report["events"].append("screenshot " + path)
-
-
-def areas(kind):
-    return [(w, a) for w in bpy.context.window_manager.windows for a in w.screen.areas
-            if a.type == kind]
 
 
 def invoke(operator="build_render"):
@@ -63,9 +60,7 @@ def press_escape():
 
 
 def click(window, x, y):
-    """Left click at Blender window coordinates (origin bottom left)."""
-    subprocess.run(["xdotool", "mousemove", str(x), str(window.height - y), "click", "1"],
-                   check=False)
+    gui_utils.click(window, x, y)
     time.sleep(0.2)
 
 

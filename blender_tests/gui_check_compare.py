@@ -35,6 +35,7 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
+from gui_utils import areas  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = pathlib.Path(ARGS[0] if ARGS else "/tmp/bsplab_gui_compare")
@@ -43,11 +44,6 @@ OUT.mkdir(parents=True, exist_ok=True)
 report = {"blender": bpy.app.version_string, "events": []}
 
 B_METHOD, B_K = "bsp_wn+kd", 4
-
-
-def areas(kind):
-    return [(w, a) for w in bpy.context.window_manager.windows for a in w.screen.areas
-            if a.type == kind]
 
 
 def big_area():

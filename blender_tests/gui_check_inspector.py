@@ -30,6 +30,7 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
+from gui_utils import click, grab_screen  # noqa: E402
 
 OUT = pathlib.Path(sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else "/tmp/bsplab_gui")
 OUT.mkdir(parents=True, exist_ok=True)
@@ -47,23 +48,12 @@ def main_region(area):
     return next(r for r in area.regions if r.type == 'WINDOW')
 
 
-def click(window, x, y):
-    """Left click at window coordinates (origin bottom left)."""
-    subprocess.run(["xdotool", "mousemove", str(int(x)), str(int(window.height - y)), "click", "1"],
-                   check=False)
-
-
 def screenshot(name):
     """The screen as (H, W, 3) floats, row 0 at the top, and its file."""
     path = OUT / (name + ".png")
-    subprocess.run(["import", "-window", "root", str(path)], check=True)
-    image = bpy.data.images.load(str(path))
-    width, height = image.size
-    flat = np.empty(width * height * 4, dtype=np.float32)
-    image.pixels.foreach_get(flat)
-    bpy.data.images.remove(image)
+    pixels = grab_screen(path).astype(np.float32) / 255.0
     report["events"].append("screenshot " + str(path))
-    return flat.reshape(height, width, 4)[::-1, :, :3], path
+    return pixels, path
 
 
 def colour_near(pixels, window, point, test):

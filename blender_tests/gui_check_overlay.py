@@ -41,6 +41,7 @@ from mathutils import Vector
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
+from gui_utils import grab_screen  # noqa: E402
 
 ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = pathlib.Path(ARGS[0] if ARGS else "/tmp/bsplab_gui_overlay")
@@ -75,17 +76,9 @@ def redraw(iterations=1, kind='DRAW_WIN_SWAP'):
 def screenshot(name):
     """The screen as an (H, W, 3) uint8 array (row 0 at the top); also kept
     as OUT/name.png."""
-    ppm = OUT / (name + ".ppm")
-    subprocess.run(["import", "-window", "root", "-depth", "8", "ppm:" + str(ppm)], check=True)
-    subprocess.run(["convert", str(ppm), str(OUT / (name + ".png"))], check=False)
-    data = ppm.read_bytes()
-    # P6 header: magic, width, height, maxval, each followed by whitespace.
-    fields = data.split(maxsplit=4)
-    width, height = int(fields[1]), int(fields[2])
-    assert fields[3] == b"255", "expected an 8-bit PPM, got maxval {}".format(fields[3])
-    pixels = np.frombuffer(fields[4][:width * height * 3], np.uint8)
+    pixels = grab_screen(OUT / (name + ".png"))
     report["events"].append("screenshot " + name)
-    return pixels.reshape(height, width, 3)
+    return pixels
 
 
 def look_at(target, direction, distance):
