@@ -1,9 +1,9 @@
 """Triangle mesh files: the readers' public entry points, and `.blend` scenes.
 
-`read_mesh`/`load_mesh` choose a reader by extension: PLY and OBJ by bsplab's
-own strict readers (formats/ply.py, formats/obj.py), glTF/GLB, STL and OFF
-through trimesh (formats/via_trimesh.py, a glTF scene flattened to world
-space). Every reader returns `(vertices float32 (V,3), faces int32 (F,3))`
+`read_mesh`/`load_mesh` choose a reader by extension: PLY, OBJ, OFF and STL
+by bsplab's own strict readers (formats/ply.py, obj.py, off.py, stl.py),
+glTF/GLB through trimesh (formats/via_trimesh.py, a glTF scene flattened to
+world space). Every reader returns `(vertices float32 (V,3), faces int32 (F,3))`
 checked the same way (formats/checks.py). `write_ply` writes binary PLY;
 `load_blend` has Blender export a .blend's evaluated scene.
 """
@@ -15,38 +15,34 @@ from pathlib import Path
 
 import numpy as np
 
-from .formats.checks import (MESH_FORMATS, PathLike, check_indices, checked_vertices,
-                             fan_triangulate, suffixes)
+from .formats import via_trimesh
+from .formats.checks import MESH_FORMATS, PathLike, fan_triangulate, regular_file, suffixes
 from .formats.obj import read_obj
+from .formats.off import read_off
 from .formats.ply import read_ply, write_ply
+from .formats.stl import read_stl
 
 __all__ = ["MESH_FORMATS", "fan_triangulate", "load_blend", "load_mesh", "read_mesh",
-           "read_obj", "read_ply", "write_ply"]
+           "read_obj", "read_off", "read_ply", "read_stl", "write_ply"]
 
 
 def read_mesh(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     """`(vertices, faces)` of a mesh file, its type chosen by extension:
-    `.ply` and `.obj` by bsplab's own readers (formats/), `.glb`, `.gltf`, `.stl`, `.off`
-    by trimesh (a glTF scene flattened to world space). The same checks apply
-    to all: finite float32 coordinates, indices that name a vertex."""
-    from .formats import via_trimesh
+    `.ply`, `.obj`, `.off` and `.stl` by bsplab's own readers (formats/),
+    `.glb` and `.gltf` by trimesh (a glTF scene flattened to world space).
+    The same checks apply to all: a regular file (not a directory, FIFO or
+    device), finite float32 coordinates, indices that name a vertex."""
+    regular_file(path)
+    suffix = Path(path).suffix.lower()[1:]
+    if suffix not in MESH_FORMATS:
+        raise ValueError(f"{path}: unsupported mesh format {Path(path).suffix.lower()!r} "
+                         f"(expected one of {suffixes()})")
+    if suffix in via_trimesh.FORMATS:
+        return via_trimesh.read(Path(path), suffix)
+    return _READERS[suffix](path)
 
-    if Path(path).is_dir():
-        raise ValueError(f"{path}: is a directory, not a mesh file "
-                         f"({suffixes()})")
-    suffix = Path(path).suffix.lower()
-    if suffix == ".ply":
-        return read_ply(path)
-    if suffix == ".obj":
-        return read_obj(path)
-    if suffix[1:] not in via_trimesh.FORMATS:
-        raise ValueError(f"{path}: unsupported mesh format {suffix!r} (expected one of "
-                         f"{suffixes()})")
-    if not Path(path).exists():
-        raise FileNotFoundError(f"{path}: no such file")
-    vertices, faces = via_trimesh.read(Path(path), suffix[1:])
-    vertices = checked_vertices(vertices, str(path), lambda i: f"vertex {i}")
-    return vertices, check_indices(faces, len(vertices), str(path))
+
+_READERS = {"ply": read_ply, "obj": read_obj, "off": read_off, "stl": read_stl}
 
 
 def load_mesh(path: PathLike) -> np.ndarray:

@@ -7,6 +7,8 @@ an index must name a vertex. Messages start with the file's name.
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 from typing import Union
 
@@ -78,11 +80,45 @@ def checked_vertices(v: np.ndarray, name: str, where) -> np.ndarray:
     return v.astype(np.float32)
 
 
+def _kind_of(mode: int) -> str:
+    """What a file that is not a regular file is, for messages."""
+    for test, kind in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "not a plain file"
+
+
+def regular_file(path: PathLike, what: str = "a mesh file") -> os.stat_result:
+    """The stat of `path` (symbolic links followed) after refusing anything
+    but a regular file: an empty path (which would mean the current
+    directory), a directory, a FIFO or a device (reading one would block
+    forever or never end, like /dev/zero), a missing file. The messages say
+    which, and what was expected."""
+    if str(path) == "":
+        raise ValueError(f"an empty path is not {what} ({suffixes()})")
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: no such file") from None
+    except OSError as e:  # a loop of links, a name too long, no permission
+        raise OSError(e.errno, f"{path}: cannot be read: {e.strerror}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise ValueError(f"{path}: is a directory, not {what} ({suffixes()})")
+    if not stat.S_ISREG(st.st_mode):
+        raise ValueError(f"{path}: not a regular file ({_kind_of(st.st_mode)}); expected "
+                         f"{what} ({suffixes()})")
+    return st
+
+
 def read_bytes(path: PathLike) -> bytes:
-    p = Path(path)
-    if p.is_dir():
-        raise ValueError(f"{path}: is a directory, not a mesh file "
-                         f"({suffixes()})")
-    if not p.exists():
-        raise FileNotFoundError(f"{path}: no such file")
-    return p.read_bytes()
+    """The whole of a regular file. At most the size stat reported is read
+    (plus one byte, to notice a file that grows meanwhile), so no file can be
+    read without bound."""
+    size = regular_file(path).st_size
+    with open(path, "rb") as f:
+        data = f.read(size + 1)
+    if len(data) > size:
+        raise ValueError(f"{path}: the file grew while it was read (it is being written?)")
+    return data

@@ -27,6 +27,7 @@ _PLY_TYPES = {
 }
 _PLY_FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 _FACE_LIST_NAMES = ("vertex_indices", "vertex_index")
+_PLY_VERSION = "1.0"  # the only version of the format there is
 
 
 # -- PLY header ------------------------------------------------------------------
@@ -64,7 +65,11 @@ def _parse_header(data: bytes, name: str) -> tuple[str | None, list[_Element], i
         try:
             if words[0] == "format":
                 if words[1] not in _PLY_FORMATS:
-                    raise ValueError(f"unsupported format {words[1]!r}")
+                    raise ValueError(f"unsupported format {words[1]!r} (expected one of "
+                                     f"{', '.join(_PLY_FORMATS)})")
+                if words[2:] != [_PLY_VERSION]:
+                    raise ValueError(f"unsupported PLY version {' '.join(words[2:])!r} "
+                                     f"(only {_PLY_VERSION})")
                 order = _PLY_FORMATS[words[1]]
             elif words[0] == "element":
                 elements.append(_Element(words[1], _element_count(words[2]), []))

@@ -1,27 +1,33 @@
-"""Mesh files that trimesh parses for `bsplab.io`: glTF/GLB, STL and OFF.
+"""Mesh files that trimesh parses for `bsplab.io`: glTF and GLB.
 
 A glTF/GLB file is a scene: a graph of nodes, each placing a mesh with its
 transform (one mesh may be placed many times). The trees want one list of
 world-space triangles, so the scene is flattened here. trimesh is imported on
 the first read, so `import bsplab` (inside Blender, say) does without it.
-PLY and OBJ keep bsplab's own stricter readers (ply.py, obj.py say why).
+The file's structure is checked first (gltf_checks.py), so damage is named
+rather than met as trimesh's internal errors. PLY, OBJ, OFF and STL have
+bsplab's own stricter readers (ply.py, obj.py, off.py, stl.py say why).
 """
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 
+from .checks import checked_vertices, check_indices, read_bytes
+from .gltf_checks import GltfError, check_references, glb_parts, parse_json
+
 # File types read here, by extension; trimesh names them the same way.
-FORMATS = ("glb", "gltf", "stl", "off")
+FORMATS = ("glb", "gltf")
 
 
 def _trimesh():
     try:
         import trimesh
     except ImportError as exc:
-        raise ImportError("reading glTF/GLB, STL or OFF files needs trimesh: "
+        raise ImportError("reading glTF/GLB files needs trimesh: "
                           "pip install 'bsplab[mesh]' (or trimesh)") from exc
     return trimesh
 
@@ -56,14 +62,30 @@ def flatten(loaded) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read(path: Path, file_type: str) -> tuple[np.ndarray, np.ndarray]:
-    """Unchecked (vertices float64, faces int64) of a file of one of FORMATS;
-    a file trimesh cannot parse is a ValueError that starts with the path."""
+    """Checked (vertices float32, faces int32) of a file of one of FORMATS;
+    a file that cannot be parsed is a ValueError "<path>: not a readable GLB
+    file: <what is wrong>"."""
+    data = read_bytes(path)
+    what = f"{path}: not a readable {file_type.upper()} file"
+    try:
+        if file_type == "glb":
+            doc, binary = glb_parts(data)
+        else:
+            doc, binary = parse_json(data), None
+        check_references(doc, binary)
+    except GltfError as e:
+        raise ValueError(f"{what}: {e}") from None
     trimesh = _trimesh()
     try:
         # process=False: the file's vertices and faces as written (no merging,
-        # no dropping of degenerate faces: the trees deal with those).
-        loaded = trimesh.load(str(path), file_type=file_type, process=False)
-    except Exception as exc:  # trimesh raises many kinds for a malformed file
+        # no dropping of degenerate faces: the trees deal with those). A GLB
+        # is parsed from the bytes checked above; a .gltf from its path, so
+        # that its buffer files are found beside it.
+        source = io.BytesIO(data) if file_type == "glb" else str(path)
+        loaded = trimesh.load(source, file_type=file_type, process=False)
+        vertices, faces = flatten(loaded)
+    except Exception as exc:  # damage the checks above do not know, in trimesh's words
         detail = str(exc) or type(exc).__name__
-        raise ValueError(f"{path}: not a readable {file_type.upper()} file: {detail}") from None
-    return flatten(loaded)
+        raise ValueError(f"{what}: {detail}") from None
+    vertices = checked_vertices(vertices, str(path), lambda i: f"vertex {i}")
+    return vertices, check_indices(faces, len(vertices), str(path))
