@@ -2,11 +2,12 @@
 structures. See docs/api.md for the API."""
 
 from . import _core, oracle
-from ._core import Cancelled, Progress
+from ._core import Cancelled
 from .camera import Camera
 from .checks import triangles as check_triangles
 from .cpu import cpu_features
 from .method_table import methods, option_schema
+from .progress import Progress
 from .render import RENDER_MODES, render
 from .tree import Tree, build
 

@@ -8,6 +8,8 @@ import numbers
 
 import numpy as np
 
+from .formats.checks import FLOAT32_MAX
+
 MAX_TRIANGLES = (1 << 30) - 1  # triangle ids share 32 bits with a 2-bit tag in the builder
 
 
@@ -19,15 +21,53 @@ def float_array(value, name: str, shape_tail: tuple[int, ...]) -> np.ndarray:
 
 
 def float_rows(value, name: str, shape_tail: tuple[int, ...]) -> np.ndarray:
-    """A C-contiguous float32 array of shape (N, *shape_tail), not yet checked for NaN/inf."""
-    arr = np.asarray(value)
+    """A C-contiguous float32 array of shape (N, *shape_tail), not yet checked
+    for NaN/inf; a finite value beyond float32's range is refused here, as
+    the cast would make it infinite."""
+    try:
+        arr = np.asarray(value)
+    except ValueError:  # rows of different lengths: numpy cannot make an array
+        raise TypeError(f"{name} must be an array of shape {_shape(shape_tail)} of numbers; "
+                        f"got a {type(value).__name__} whose items differ in shape"
+                        f"{_MESH_TUPLE if isinstance(value, list) else ''}") from None
     if arr.dtype == object or not (np.issubdtype(arr.dtype, np.floating)
                                    or np.issubdtype(arr.dtype, np.integer)):
         raise TypeError(f"{name} must be a float array, got dtype {arr.dtype}")
     if arr.ndim != 1 + len(shape_tail) or tuple(arr.shape[1:]) != shape_tail:
-        want = "(N, " + ", ".join(map(str, shape_tail)) + ")"
-        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
-    return np.ascontiguousarray(arr, dtype=np.float32)
+        raise ValueError(f"{name} must have shape {_shape(shape_tail)}, got {arr.shape}")
+    with np.errstate(over="ignore"):
+        out = np.ascontiguousarray(arr, dtype=np.float32)
+    if arr.dtype.itemsize > 4 and np.issubdtype(arr.dtype, np.floating):
+        _check_float32_range(arr, out, name)
+    return out
+
+
+_FLOAT32_RANGE = "max 3.4e38"  # FLOAT32_MAX, as messages give it
+
+# What a list that is not one array probably meant.
+_MESH_TUPLE = " (a mesh of vertices and indices is a tuple: build((vertices, indices)))"
+
+
+def _shape(shape_tail: tuple[int, ...]) -> str:
+    return "(N, " + ", ".join(map(str, shape_tail)) + ")"
+
+
+def _check_float32_range(wide: np.ndarray, narrow: np.ndarray, name: str) -> None:
+    """Refuses values finite in `wide` (float64) that became infinite in
+    `narrow` (their float32 cast): beyond float32's range, not NaN or inf."""
+    if np.isfinite(narrow).all():
+        return
+    over = (np.isfinite(wide) & ~np.isfinite(narrow)).reshape(len(wide), -1).any(axis=1)
+    if over.any():
+        i = int(np.argmax(over))
+        raise ValueError(f"{name} has {int(over.sum())} entries out of float32 range "
+                         f"({_FLOAT32_RANGE}) (first at index {i}: "
+                         f"{_first_over(wide[i])})")
+
+
+def _first_over(row: np.ndarray) -> str:
+    return f"{float(row.reshape(-1)[np.argmax(np.abs(row.reshape(-1)) > FLOAT32_MAX)]):g}"
+
 
 
 def check_finite(arr: np.ndarray, name: str) -> None:
@@ -40,6 +80,9 @@ def check_finite(arr: np.ndarray, name: str) -> None:
 
 def triangles(value) -> np.ndarray:
     """(N, 3, 3) float32 triangles from an array or a (vertices, indices) pair."""
+    if isinstance(value, list) and len(value) == 2 and _looks_like_mesh(value):
+        raise TypeError("a mesh of (vertices, indices) must be a tuple, got a list of two "
+                        "arrays: build((vertices, indices))")
     if isinstance(value, tuple):
         if len(value) != 2:
             raise ValueError("a mesh tuple must be (vertices, indices)")
@@ -59,6 +102,18 @@ def triangles(value) -> np.ndarray:
     if len(tris) > MAX_TRIANGLES:
         raise ValueError(f"{len(tris)} triangles is more than the {MAX_TRIANGLES} supported")
     return np.ascontiguousarray(tris, dtype=np.float32)
+
+
+def _looks_like_mesh(pair: list) -> bool:
+    """[V (n, 3) floats, F (m, 3) integers]: a (vertices, indices) pair in a
+    list. (Of different shapes numpy cannot stack them, and float_rows says
+    so; of the same shape they would pass for two triangles.)"""
+    try:
+        v, f = (np.asarray(x) for x in pair)
+    except ValueError:
+        return False
+    return (v.ndim == f.ndim == 2 and v.shape[1] == f.shape[1] == 3
+            and np.issubdtype(v.dtype, np.floating) and np.issubdtype(f.dtype, np.integer))
 
 
 def number(value, name: str, *, low=None, high=None, low_open=False, integer=False):
@@ -163,30 +218,63 @@ def rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ray_range(value, name: str, n: int, default: float = 0.0) -> np.ndarray:
-    """tmin/tmax as a length-1 (broadcast) or length-n float32 array; None
-    means `default` (0 for tmin, inf, no limit, for tmax)."""
+    """tmin/tmax as a length-1 (broadcast) or length-n float32 array of real
+    numbers >= 0 (inf allowed: no limit); None means `default` (0 for tmin,
+    inf for tmax). A string, a complex number, a None inside an array, NaN
+    and a finite value beyond float32's range are refused."""
     if value is None:
         value = default
     try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, an array of numbers or None, "
-                        f"got {type(value).__name__}") from None
+        arr = np.asarray(value)
+    except ValueError:
+        arr = np.asarray(value, dtype=object)
+    if arr.dtype.kind not in "iuf":  # bool, complex, str, object (None, mixed)
+        if arr.ndim == 0:
+            shown = f"{type(value).__name__} {value!r}"
+        elif arr.dtype == object and any(x is None for x in arr.ravel()):
+            shown = f"a {type(value).__name__} holding None (None stands only for the whole {name})"
+        else:
+            shown = f"a {type(value).__name__} of {arr.dtype}"
+        raise TypeError(f"{name} must be a real number, an array of real numbers or None, "
+                        f"got {shown}"[:200])
+    arr = arr.astype(np.float64)
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim != 1 or len(arr) not in (1, n):
         raise ValueError(f"{name} must be a scalar or have shape ({n},), got {arr.shape}")
     if np.isnan(arr).any():
-        raise ValueError(f"{name} contains NaN")
+        raise ValueError(f"{name} contains NaN (first at index {int(np.argmax(np.isnan(arr)))})")
     if (arr < 0).any():
         raise ValueError(f"{name} must be >= 0")
+    over = np.isfinite(arr) & (arr > FLOAT32_MAX)
+    if over.any():
+        i = int(np.argmax(over))
+        raise ValueError(f"{name} out of float32 range ({_FLOAT32_RANGE}): {arr[i]:g} at "
+                         f"index {i} (inf means no limit)")
     return np.ascontiguousarray(arr, dtype=np.float32)
+
+
+def ray_ranges(tmin, tmax, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Checked tmin and tmax (see ray_range), with tmin <= tmax on every ray:
+    a ray whose tmin exceeds its tmax could hit nothing."""
+    lo = ray_range(tmin, "tmin", n, default=0.0)
+    hi = ray_range(tmax, "tmax", n, default=np.inf)
+    above = lo > hi
+    if above.any():
+        i = int(np.argmax(above))
+        at = f"ray {i}: " if max(len(lo), len(hi)) > 1 else ""
+        raise ValueError(f"tmin must be <= tmax; {at}tmin {lo[min(i, len(lo) - 1)]:g} > "
+                         f"tmax {hi[min(i, len(hi) - 1)]:g}")
+    return lo, hi
 
 
 def progress(value):
     """None or a bsplab.Progress (the core's own type; anything else would
     meet nanobind's raw signature dump)."""
     from . import _core
+    if isinstance(value, type) and issubclass(value, _core.Progress):
+        raise TypeError("progress must be a bsplab.Progress or None, got the class "
+                        "bsplab.Progress itself; pass an instance: progress=bsplab.Progress()")
     if value is not None and not isinstance(value, _core.Progress):
         raise TypeError(f"progress must be a bsplab.Progress or None, got "
                         f"{type(value).__name__}")

@@ -83,8 +83,7 @@ class Tree:
             raise ValueError("packets=True traces without leaf culling; pass cull=False")
         o, d = checks.rays(origins, directions)
         n = len(o)
-        lo = checks.ray_range(tmin, "tmin", n, default=0.0)
-        hi = checks.ray_range(tmax, "tmax", n, default=np.inf)
+        lo, hi = checks.ray_ranges(tmin, tmax, n)
         progress = checks.progress(progress)
         out = {
             "t": np.empty(n, np.float32),
@@ -159,8 +158,7 @@ class Tree:
         d = _finite_vector(direction, "direction")
         if not d.any():
             raise ValueError("direction must not be zero")
-        lo = float(checks.ray_range(tmin, "tmin", 1, default=0.0)[0])
-        hi = float(checks.ray_range(tmax, "tmax", 1, default=np.inf)[0])
+        lo, hi = (float(x[0]) for x in checks.ray_ranges(tmin, tmax, 1))
         return _core.trace_path(self._tree, o, d, lo, hi, bool(cull))
 
     def _root(self, root) -> int:

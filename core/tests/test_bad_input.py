@@ -125,8 +125,8 @@ def test_none_ray_range_means_the_default(tree):
         np.testing.assert_array_equal(got["t"], ref["t"])
         np.testing.assert_array_equal(got["prim"], ref["prim"])
     assert (ref["prim"] >= 0).all()  # the rays hit, so an accidental tmax=0 would show
-    with pytest.raises(TypeError, match="tmax must be a number, an array of numbers or None, "
-                                        "got str"):
+    with pytest.raises(TypeError, match="tmax must be a real number, an array of real numbers "
+                                        "or None, got str 'far'"):
         tree.intersect(o, d, tmax="far")
 
 
