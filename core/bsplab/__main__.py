@@ -134,13 +134,17 @@ def cmd_build_bench(args) -> int:
     out = output_file(args.out, "--out", "build_benchmark.md") if args.out else None
     rows = build_bench.bench_build(args.scenes, rounds=args.repeats, threads=args.threads,
                                    sweeps=args.sweeps)
+    if not rows:
+        raise ValueError(f"none of the scenes ({', '.join(args.scenes or build_bench.DEFAULT_SCENES)}) "
+                         f"is here (the shared scenes folder: {build_bench.shared_folder()}); "
+                         "name generated scenes or mesh files with --scenes")
     text = build_bench.build_markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
     print(text)
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(text)
         print(f"written {out}")
-    return 0 if rows else 1
+    return 0
 
 
 def cmd_experiment(args) -> int:
@@ -203,7 +207,9 @@ def cmd_verdict(args) -> int:
 def cmd_agree(args) -> int:
     import bsplab
     from bsplab import agreement
-    methods = list(bsplab.methods()) if args.methods in (None, [], ["all"]) else args.methods
+    named = args.methods not in (None, [], ["all"])
+    methods = args.methods if named else list(bsplab.methods())
+    agreement.check_k(methods, args.k, named)
     rows = agreement.run(args.scenes, methods, args.rays, k=args.k, seed=args.seed)
     bad = sum(r["unexplained"] for r in rows)
     print(f"\n{bad} unexplained disagreements in {len(rows)} scene x method x family cells")
@@ -362,8 +368,9 @@ def main(argv=None) -> int:
                                      "(outside-in, axis-parallel, vertices, edges, planes, ...)")
     a.add_argument("--scenes", nargs="+", default=["room", "cube", "grids", "tilted"])
     a.add_argument("--methods", nargs="*", help="default: all")
-    a.add_argument("--rays", type=int, default=5000, help="rays per family")
-    a.add_argument("--k", type=int, help="K for the methods that take one (default: theirs)")
+    a.add_argument("--rays", type=whole(1), default=5000, help="rays per family")
+    a.add_argument("--k", type=whole(1), help="K for the methods that take one (default: "
+                                              "theirs); each must allow it")
     a.add_argument("--seed", type=int, default=0)
     a.set_defaults(func=cmd_agree)
 

@@ -37,11 +37,34 @@ class FamilyRays:
         return out
 
 
+def check_k(methods: list[str], k: int | None, named: bool = True) -> None:
+    """ValueError unless every method (a name of the method table) that
+    takes K allows `k`, and, when the methods were `named` one by one, each
+    takes a K at all (a --k for kd alone would be silently ignored)."""
+    from .method_table import MAX_K, METHODS, get
+    chosen = [get(m) for m in methods]  # unknown names are refused here
+    if k is None:
+        return
+    without = [m.name for m in chosen if "k" not in m.params]
+    if (named and without) or len(without) == len(chosen):
+        raise ValueError(f"--k {k}: {', '.join(without)} "
+                         f"{'takes' if len(without) == 1 else 'take'} no K (the methods that take "
+                         f"K: {', '.join(n for n, m in METHODS.items() if 'k' in m.params)})")
+    for m in chosen:
+        if m.name not in without and not m.min_k <= k <= MAX_K:
+            raise ValueError(f"--k {k} is out of range for {m.name}: it takes K in "
+                             f"{m.min_k}..{MAX_K}")
+
+
 def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
         seed: int = 0, out=print) -> list[dict]:
     """One row per scene, method and family; prints a table as it goes."""
     import bsplab
+    from . import checks
     from .scenes import load
+
+    checks.number(count, "rays per family", low=1, integer=True)
+    check_k(methods, k, named=False)
 
     table = bsplab.methods()
     rows = []
@@ -55,7 +78,7 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
         for method in methods:
             opts = {}
             if k is not None and "k" in table[method]["params"]:
-                opts["k"] = max(k, table[method]["min_k"])
+                opts["k"] = k
             tree = bsplab.build(tris, method=method, **opts)
             res = rays.check(tree)
             cells = []

@@ -343,9 +343,11 @@ def shared_path(name: str) -> Path:
     from . import workloads
     shared = workloads.shared_scenes_dir()
     if shared is None or not (shared / f"{name}.ply").is_file():
+        here = sorted(p.stem for p in shared.glob("*.ply")) if shared is not None else []
         raise FileNotFoundError(
-            f"no scene {name!r}: not a generated scene ({', '.join(NAMES)}), a file, or a "
-            f"mesh in the shared scenes folder ({shared or 'not found'})")
+            f"no scene {name!r}: not a generated scene ({', '.join(NAMES + PROBE_NAMES)}), a "
+            f"file, or a mesh in the shared scenes folder ({shared or 'not found'}"
+            f"{': ' + ', '.join(here) if here else ''})")
     return shared / f"{name}.ply"
 
 

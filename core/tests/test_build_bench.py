@@ -12,12 +12,14 @@ from bsplab.lab import build_bench
 pytest.importorskip("embreex")
 
 
-def test_rows_hold_paired_medians_and_the_trees_cost():
+def test_rows_hold_paired_medians_and_the_trees_cost(monkeypatch):
+    from bsplab import workloads
+    monkeypatch.setattr(workloads, "shared_scenes_dir", lambda: None)  # no shared meshes here
     logged = []
-    rows = build_bench.bench_build(["room", "no_such_scene"], rounds=3, threads=2,
+    rows = build_bench.bench_build(["room", "bunny"], rounds=3, threads=2,
                                    log=logged.append)
     assert [r["scene"] for r in rows] == ["room"]
-    assert any("skipped scene no_such_scene" in line for line in logged), logged
+    assert any("skipped scene bunny" in line for line in logged), logged
     r = rows[0]
     assert r["triangles"] == len(scenes.load("room"))
     assert r["threads"] == 2 and r["rounds"] == 3
@@ -48,8 +50,13 @@ def test_command_writes_the_table(tmp_path, capsys):
     assert "| room |" in capsys.readouterr().out
 
 
-def test_command_fails_when_no_scene_is_here(capsys):
-    assert main(["bench-build", "--scenes", "no_such_scene", "--repeats", "1"]) == 1
+def test_command_fails_when_no_scene_is_here(capsys, monkeypatch):
+    from bsplab import workloads
+    monkeypatch.setattr(workloads, "shared_scenes_dir", lambda: None)
+    assert main(["bench-build", "--scenes", "bunny", "--repeats", "1"]) == 2
+    assert capsys.readouterr().err == ("error: none of the scenes (bunny) is here (the shared "
+                                       "scenes folder: not found); name generated scenes or "
+                                       "mesh files with --scenes\n")
 
 
 def test_sweeps_add_the_bsp_builds_over_kd(tmp_path):

@@ -64,6 +64,12 @@ def build_row(name: str, triangles, rounds: int, threads: int, sweeps: bool = Fa
     return row
 
 
+def shared_folder() -> str:
+    """The shared scenes folder, for messages."""
+    from ..workloads import shared_scenes_dir
+    return str(shared_scenes_dir() or "not found")
+
+
 def build_markdown(rows: list[dict], command: str) -> str:
     threads = rows[0]["threads"] if rows else 0
     # The BSP columns when every row has them (rows of one run all do).
@@ -90,9 +96,15 @@ def build_markdown(rows: list[dict], command: str) -> str:
 
 def bench_build(scene_names: list[str] | None = None, rounds: int = 3, threads: int = 0,
                 log=print, sweeps: bool = False) -> list[dict]:
-    """The rows of every scene here (shared meshes absent here are skipped,
-    and said so); `threads` 0 means all cores; `sweeps` adds the BSP builds."""
+    """The rows of every scene named, or without names of DEFAULT_SCENES: a
+    default shared mesh absent here is skipped (and said so), any other name
+    that is no scene is an error naming the scenes there are; `threads` 0
+    means all cores; `sweeps` adds the BSP builds."""
+    from .spec import check_scene
     threads = threads or os.cpu_count() or 1
+    for name in scene_names or []:  # before the first build: a typo is said at once
+        if name not in DEFAULT_SCENES:
+            check_scene(name)
     rows = []
     for name in scene_names or DEFAULT_SCENES:
         try:

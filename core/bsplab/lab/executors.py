@@ -12,8 +12,11 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 
-
 from .. import Cancelled
+
+# How long a run waits for a named Dask scheduler to answer before it says
+# it cannot reach it (Dask's own default is 30 s).
+CONNECT_SECONDS = 10
 
 
 def _run_cell(run_cell, spec, cell):
@@ -78,7 +81,12 @@ class DaskExecutor:
             raise RuntimeError("the dask executor needs 'dask[distributed]' installed") from e
         self.cluster = None
         if scheduler:
-            self.client = Client(scheduler)
+            try:
+                self.client = Client(scheduler, timeout=CONNECT_SECONDS)
+            except (OSError, TimeoutError, ValueError) as e:  # no scheduler there, a bad address
+                raise RuntimeError(f"dask scheduler {scheduler}: cannot connect within "
+                                   f"{CONNECT_SECONDS} s ({e}); is a scheduler running "
+                                   "there?") from None
         else:
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                         processes=True, dashboard_address=None)

@@ -58,10 +58,10 @@ def run(spec: Spec, out, *, fresh: bool = False, executor=None,
     todo = [c for c in everything if c.key not in finished]
     total = len(everything)
     done = total - len(todo)
+    if executor is None:  # before the bar: a scheduler it cannot reach is said plainly
+        executor = executors.make(spec, run_cell, inline=scene_data is not None)
     bar = None if quiet else _Bar(total, done, f"{done} cells already in {results.csv}"
                                   if done else "starting")
-    if executor is None:
-        executor = executors.make(spec, run_cell, inline=scene_data is not None)
     start = time.perf_counter()
     try:
         for cell, rows in executor.map(spec, todo, scene_data=scene_data, progress=progress):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 
@@ -146,10 +147,9 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     if unknown:
         raise SpecError(f"unknown spec key(s) {', '.join(unknown)}; known keys: "
                         f"{', '.join(SPEC_DEFAULTS)}")
+    _check_depth(data)
     d = {**{k: v for k, v in SPEC_DEFAULTS.items()}, **data}
-    scenes = d["scenes"]
-    if isinstance(scenes, str):
-        scenes = [scenes]
+    scenes = _name_list(d, "scenes")
     if not isinstance(scenes, list) or not scenes or not all(isinstance(s, str) and s
                                                              for s in scenes):
         raise SpecError("scenes: give at least one scene (a generated scene name, a shared "
@@ -162,9 +162,7 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     if check_files:
         for s in scenes:
             check_scene(s)
-    methods = d["methods"]
-    if isinstance(methods, str):
-        methods = [methods]
+    methods = _name_list(d, "methods")
     if not isinstance(methods, list) or not methods or not all(isinstance(m, str)
                                                                for m in methods):
         raise SpecError("methods: give a list of method names")
@@ -176,9 +174,12 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     method_ks = {}
     if not isinstance(d["method_ks"], dict):
         raise SpecError("method_ks: expected a table of method = [K, ...]")
+    with_k = [m for m in methods if "k" in METHODS[m].params]
     for m, v in d["method_ks"].items():
-        if m not in METHODS:
-            raise SpecError(f"method_ks: unknown method {m!r}")
+        _check_method_key("method_ks", m, methods)
+        if m not in with_k:
+            raise SpecError(f"method_ks: {m} takes no K; the spec's methods that take K: "
+                            f"{', '.join(with_k) or 'none'}")
         method_ks[m] = _int_list(v, f"method_ks.{m}")
     for m in methods:
         if "k" in METHODS[m].params:
@@ -187,9 +188,7 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     seeds = _int_list(d["seeds"], "seeds")
     if any(not 0 <= s <= 2**63 - 1 for s in seeds):
         raise SpecError(f"seeds must be in 0..{2**63 - 1}, got {seeds!r}")
-    workloads = d["workloads"]
-    if isinstance(workloads, str):
-        workloads = [workloads]
+    workloads = _name_list(d, "workloads")
     if (not isinstance(workloads, list) or not workloads
             or any(not isinstance(w, str) or w not in WORKLOADS for w in workloads)):
         raise SpecError(f"workloads: expected some of {', '.join(WORKLOADS)}, got {workloads!r}")
@@ -213,6 +212,7 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
         raise SpecError(f"ao_distance must be a number in (0, 10], got {ao_distance!r}")
     if not isinstance(d["executor"], str) or d["executor"] not in EXECUTORS:
         raise SpecError(f"executor must be one of {', '.join(EXECUTORS)}, got {d['executor']!r}")
+    _check_scheduler(d["scheduler"], d["executor"])
     if not isinstance(d["options"], dict):
         raise SpecError("options: expected a table of build options")
     variants = _variants(d["variants"], "variants")
@@ -220,8 +220,7 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
         raise SpecError("method_variants: expected a table of method = [{options}, ...]")
     method_variants = {}
     for m, v in d["method_variants"].items():
-        if m not in METHODS:
-            raise SpecError(f"method_variants: unknown method {m!r}")
+        _check_method_key("method_variants", m, methods)
         method_variants[m] = _variants(v, f"method_variants.{m}")
     for key in ("cull", "hits_only"):
         if not isinstance(d[key], bool):
@@ -239,6 +238,65 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
                 hits_only=d["hits_only"])
     _check_options(spec)
     return spec
+
+
+def _name_list(d: dict, key: str):
+    """The list of names under `key`; a bare string is refused, as it may
+    mean one name or a typo'd list and the spec says which only with [...]."""
+    value = d[key]
+    if isinstance(value, str):
+        raise SpecError(f"{key} must be a list of names, got a string {value!r} (write "
+                        f"{key} = [{json.dumps(value)}])")
+    return value
+
+
+def _check_method_key(key: str, method: str, methods: list) -> None:
+    """A per-method table's key must be one of the spec's methods."""
+    if method not in METHODS:
+        raise SpecError(f"{key}: unknown method {method!r}; the spec's methods: "
+                        f"{', '.join(methods)}")
+    if method not in methods:
+        raise SpecError(f"{key}: {method} is not among the spec's methods "
+                        f"({', '.join(methods)}); it would be ignored")
+
+
+# A Dask scheduler address: [protocol://]host:port.
+_ADDRESS = re.compile(r"((tcp|tls|ws|wss)://)?(\[[0-9a-fA-F:]+\]|[A-Za-z0-9._-]+):(\d{1,5})")
+
+
+def _check_scheduler(scheduler, executor: str) -> None:
+    if not isinstance(scheduler, str) or not scheduler:
+        return  # its type is checked with the other strings
+    if executor != "dask":
+        raise SpecError(f"scheduler {scheduler!r} is only for executor = \"dask\" (executor "
+                        f"is {executor!r}); remove it or set executor = \"dask\"")
+    m = _ADDRESS.fullmatch(scheduler)
+    if m is None or not 1 <= int(m.group(4)) <= 65535:
+        raise SpecError(f"scheduler must be a Dask scheduler address such as "
+                        f"tcp://host:8786 (protocol tcp, tls, ws or wss; port 1..65535), got "
+                        f"{scheduler!r}")
+
+
+# How deeply a spec's tables and lists may nest: the deepest a spec needs
+# is method_variants -> method -> list -> option table -> value.
+MAX_DEPTH = 8
+
+
+def _check_depth(data: dict) -> None:
+    """Refuses tables or lists nested beyond MAX_DEPTH (walked without
+    recursion, so any depth is measured)."""
+    stack = [(data, 1, "")]
+    while stack:
+        value, depth, where = stack.pop()
+        if depth > MAX_DEPTH:
+            raise SpecError(f"nested too deeply: {where.lstrip('.')} lies {depth} tables or "
+                            f"lists deep; a spec needs at most {MAX_DEPTH}")
+        items = (value.items() if isinstance(value, dict) else
+                 enumerate(value) if isinstance(value, list) else ())
+        for k, v in items:
+            if isinstance(v, (dict, list)):
+                stack.append((v, depth + 1, f"{where}.{k}" if isinstance(k, str)
+                              else f"{where}[{k}]"))
 
 
 def _variants(value, key: str) -> list[dict]:
@@ -295,6 +353,8 @@ def load_spec(path, **overrides) -> Spec:
             data = json.loads(text)
         except json.JSONDecodeError as e:
             raise SpecError(f"{path}: not valid JSON: {e}") from None
+        except RecursionError:
+            raise _too_deep(path) from None
     else:
         try:
             import tomllib
@@ -304,16 +364,28 @@ def load_spec(path, **overrides) -> Spec:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise SpecError(f"{path}: not valid TOML: {e}") from None
+        except RecursionError:
+            raise _too_deep(path) from None
     if not isinstance(data, dict):
         raise SpecError(f"{path}: a spec must be a JSON object of settings ({{\"scenes\": "
                         f"[...], ...}}), got {_kind(data)}")
     given = {k: v for k, v in overrides.items() if v is not None}
+    if "methods" in given:  # the file's per-method tables, narrowed to the methods given
+        for key in ("method_ks", "method_variants"):
+            if isinstance(data.get(key), dict):
+                data[key] = {m: v for m, v in data[key].items() if m in given["methods"]}
     data.update(given)
     try:
         return make_spec(data, base_dir=path.parent)
     except SpecError as e:
         where = f"{path} with --{', --'.join(given)}" if given else str(path)
         raise SpecError(f"{where}: {e}") from None
+
+
+def _too_deep(path: Path) -> SpecError:
+    return SpecError(f"{path}: nested too deeply: its tables or lists lie inside each other "
+                     f"beyond what the reader can follow (a spec needs at most {MAX_DEPTH} "
+                     "levels)")
 
 
 def check_scene(scene: str) -> None:

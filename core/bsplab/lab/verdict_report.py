@@ -287,6 +287,13 @@ def main(out, scenes=None, results=None, rounds: int = 7, side: int | None = Non
     from .store import read_rows
     out = Path(out)
     data = out.parent / "data" / (out.stem + ".json")
+    if results and not Path(results).is_file():  # before any long work
+        what = "not a regular file" if Path(results).exists() else "no such results file"
+        raise ValueError(f"--results {results}: {what} (run `python -m bsplab results` "
+                         "first, or name one with --results)")
+    if not trace and not data.is_file():
+        raise ValueError(f"--skip-trace: no traced record {data} to reuse; run without "
+                         "--skip-trace")
     if trace:
         from .benchmarks import available_scenes
         chosen = scenes or available_scenes(verdict.DEFAULT_SCENES)
@@ -296,8 +303,8 @@ def main(out, scenes=None, results=None, rounds: int = 7, side: int | None = Non
         record = verdict.run(chosen, data, rounds=rounds, width=side, height=side,
                              command=command)
     else:
-        record = json.loads(data.read_text()) if data.exists() else None
-    rows = read_rows(results) if results and Path(results).exists() else None
+        record = json.loads(data.read_text())
+    rows = read_rows(results) if results else None
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(markdown(record, rows, command))
     print(f"written {out} (traced record in {data})")
