@@ -234,7 +234,8 @@ def ray_range(value, name: str, n: int, default: float = 0.0) -> np.ndarray:
         elif arr.dtype == object and any(x is None for x in arr.ravel()):
             shown = f"a {type(value).__name__} holding None (None stands only for the whole {name})"
         else:
-            shown = f"a {type(value).__name__} of {arr.dtype}"
+            kinds = {"U": "strings", "S": "bytes", "c": "complex numbers", "b": "booleans"}
+            shown = f"a {type(value).__name__} of {kinds.get(arr.dtype.kind, arr.dtype)}"
         raise TypeError(f"{name} must be a real number, an array of real numbers or None, "
                         f"got {shown}"[:200])
     arr = arr.astype(np.float64)

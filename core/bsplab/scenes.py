@@ -361,6 +361,8 @@ def load_with_camera(name: str) -> tuple[np.ndarray, Camera | None]:
     generated scene, an existing .ply/.obj/.blend file (bsplab.io says what
     is wrong with a file it cannot read), or a shared mesh's name."""
     from . import io
+    if name == "":  # Path("") is the current directory: let the reader say what "" is
+        return io.load_mesh(name), None
     if name in NAMES + PROBE_NAMES:
         return generate(name), default_camera(name) if name in NAMES else None
     path = Path(name)
