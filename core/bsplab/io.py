@@ -68,11 +68,11 @@ def load_blend(path: PathLike, blender: str | None = None, timeout: float = 600.
     from .blender import EXPORT_SCRIPT
     from .camera import Camera
 
+    try:
+        regular_file(path, "a .blend file")
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no .blend file {path}") from None
     path = Path(path)
-    if path.is_dir():
-        raise ValueError(f"{path}: is a directory, not a .blend file")
-    if not path.is_file():
-        raise FileNotFoundError(f"no .blend file {path}")
     exe = blender or os.environ.get("BSPLAB_BLENDER") or "blender"
     if shutil.which(exe) is None:
         raise FileNotFoundError(f"reading {path.name} needs Blender: {exe!r} is not an "

@@ -163,13 +163,17 @@ def api_case(id, what, call, exc, message):
     return Case(id, what, lambda d: call(), exc, message)
 
 
+FIFO = object()  # a cli_case file made as a named pipe
+
+
 def cli_case(id, argv, message, files: dict | None = None):
     """`python -m bsplab ARGV`, in-process, after writing `files` into the
-    folder: exit code 2 and the one-line `message` on stderr."""
+    folder (FIFO: a named pipe): exit code 2 and the one-line `message` on
+    stderr."""
     def run(d: Path):
         from bsplab.__main__ import main
         for name, content in (files or {}).items():
-            write(d, name, content)
+            fifo(d, name) if content is FIFO else write(d, name, content)
         try:
             return main([a.replace("{d}", str(d)) for a in argv])
         except SystemExit as e:  # argparse
@@ -207,6 +211,10 @@ CASES = [
               "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3.0 0 1 2\n", "ValueError",
               "{d}/frac.off: line 6: face 0's vertex count must be a whole number >= 0, "
               "got '3.0'"),
+    mesh_case("off_unicode_digit", "OFF face count written '³' (a digit, but not 0-9)",
+              "sup.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n\u00b3 0 1 2\n", "ValueError",
+              "{d}/sup.off: line 6: face 0's vertex count must be a whole number >= 0, "
+              "got '\u00b3'"),
     mesh_case("off_huge_count", "OFF header promising 10^9 vertices", "huge.off",
               "OFF\n1000000000 1 0\n0 0 0\n1 0 0\n", "ValueError",
               "{d}/huge.off: truncated: the header promises 1000000000 vertices and 1 faces, "
@@ -394,7 +402,15 @@ CASES = [
              "tilted), a file, or a mesh in the shared scenes folder (not found)"),
     cli_case("demo_fifo_scene", ["demo", "--scene", "{d}/pipe.ply", "--out", "{d}/x.png"],
              f"error: {{d}}/pipe.ply: not a regular file (a named pipe); expected a mesh file "
-             f"{FORMATS}"),
+             f"{FORMATS}", {"pipe.ply": FIFO}),
+    cli_case("experiment_fifo_spec", ["experiment", "{d}/pipe.toml"],
+             "error: spec file {d}/pipe.toml is not a regular file", {"pipe.toml": FIFO}),
+    cli_case("experiment_fifo_scene", ["experiment", "{d}/spec.toml"],
+             "error: {d}/spec.toml: scene file {d}/pipe.ply is not a regular file",
+             {"pipe.ply": FIFO, "spec.toml": 'scenes = ["pipe.ply"]\n'}),
+    cli_case("report_fifo_results", ["report", "{d}/pipe.csv", "--out", "{d}/r.md"],
+             "error: {d}/pipe.csv: not a regular file, not a results file",
+             {"pipe.csv": FIFO}),
     cli_case("demo_empty_scene", ["demo", "--scene", "", "--out", "{d}/x.png"],
              f"error: an empty path is not a mesh file {FORMATS}"),
     # -- experiment specs --------------------------------------------------------------
@@ -473,9 +489,13 @@ def check(case: Case, d: Path, capsys) -> None:
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_bad_input_gives_its_message(case, tmp_path, capsys, no_shared_scenes):
-    if case.id == "demo_fifo_scene":
-        fifo(tmp_path, "pipe.ply")
     check(case, tmp_path, capsys)
+
+
+def test_a_fifo_named_blend_is_refused_before_blender_runs(tmp_path):
+    with pytest.raises(ValueError, match=f"^{tmp_path}/pipe.blend: not a regular file "
+                                         r"\(a named pipe\); expected a .blend file$"):
+        io.load_blend(fifo(tmp_path, "pipe.blend"), blender="/nonexistent/blender")
 
 
 def test_an_unreachable_scheduler_is_said_within_the_timeout(tmp_path, capsys, monkeypatch):

@@ -53,8 +53,6 @@ def main() -> int:
     for case in cases.CASES + [cases.UNREACHABLE]:
         with tempfile.TemporaryDirectory() as tmp:
             d = Path(tmp)
-            if case.id == "demo_fifo_scene":
-                cases.fifo(d, "pipe.ply")
             err = _Stderr()
             with contextlib.redirect_stderr(err.buffer), contextlib.redirect_stdout(io.StringIO()):
                 kind, message = cases.outcome(case, d, err)

@@ -90,14 +90,15 @@ def _kind_of(mode: int) -> str:
     return "not a plain file"
 
 
-def regular_file(path: PathLike, what: str = "a mesh file") -> os.stat_result:
+def regular_file(path: PathLike, what: str = "") -> os.stat_result:
     """The stat of `path` (symbolic links followed) after refusing anything
     but a regular file: an empty path (which would mean the current
     directory), a directory, a FIFO or a device (reading one would block
     forever or never end, like /dev/zero), a missing file. The messages say
-    which, and what was expected."""
+    which, and what was expected (`what`; default: a mesh file of MESH_FORMATS)."""
+    what = what or f"a mesh file ({suffixes()})"
     if str(path) == "":
-        raise ValueError(f"an empty path is not {what} ({suffixes()})")
+        raise ValueError(f"an empty path is not {what}")
     try:
         st = os.stat(path)
     except FileNotFoundError:
@@ -105,10 +106,10 @@ def regular_file(path: PathLike, what: str = "a mesh file") -> os.stat_result:
     except OSError as e:  # a loop of links, a name too long, no permission
         raise OSError(e.errno, f"{path}: cannot be read: {e.strerror}") from None
     if stat.S_ISDIR(st.st_mode):
-        raise ValueError(f"{path}: is a directory, not {what} ({suffixes()})")
+        raise ValueError(f"{path}: is a directory, not {what}")
     if not stat.S_ISREG(st.st_mode):
         raise ValueError(f"{path}: not a regular file ({_kind_of(st.st_mode)}); expected "
-                         f"{what} ({suffixes()})")
+                         f"{what}")
     return st
 
 

@@ -42,7 +42,7 @@ def _lines(text: str):
 
 
 def _whole(word: str, what: str) -> int:
-    if not word.isdigit():  # also refuses '3.0', '-1', '1e9'
+    if not (word.isascii() and word.isdigit()):  # also refuses "3.0", "-1", "1e9", "²"
         raise ValueError(f"{what} must be a whole number >= 0, got {word!r}")
     return int(word)
 

@@ -95,7 +95,7 @@ def _parse_header(data: bytes, name: str) -> tuple[str | None, list[_Element], i
 
 
 def _element_count(word: str) -> int:
-    if not word.isdigit():  # also refuses '3.7', '-1', 'nan', 'inf'
+    if not (word.isascii() and word.isdigit()):  # also refuses '3.7', '-1', 'nan', '²'
         raise ValueError(f"element count must be a whole number >= 0, got {word!r}")
     return int(word)
 

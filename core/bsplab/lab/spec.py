@@ -341,6 +341,8 @@ def load_spec(path, **overrides) -> Spec:
     path = Path(path)
     if path.is_dir():
         raise SpecError(f"spec file {path} is a directory")
+    if path.exists() and not path.is_file():  # a FIFO or a device: never opened
+        raise SpecError(f"spec file {path} is not a regular file")
     if not path.is_file():
         raise SpecError(f"spec file {path} does not exist")
     try:
@@ -397,6 +399,8 @@ def check_scene(scene: str) -> None:
         p = Path(scene)
         if p.is_dir():
             raise SpecError(f"scene file {scene} is a directory, not a mesh file")
+        if p.exists() and not p.is_file():
+            raise SpecError(f"scene file {scene} is not a regular file")
         if not p.is_file():
             raise SpecError(f"scene file {scene} does not exist")
         if p.suffix.lower() not in scene_names.FILE_SUFFIXES:

@@ -182,6 +182,8 @@ def read_rows(path) -> list[dict]:
     csv_path = Path(path).with_suffix(".csv")
     if csv_path.is_dir():
         raise ValueError(f"{csv_path} is a directory, not a results file")
+    if csv_path.exists() and not csv_path.is_file():  # a FIFO or a device: never opened
+        raise ValueError(f"{csv_path}: not a regular file, not a results file")
     if not csv_path.is_file():
         raise FileNotFoundError(f"no results file {csv_path}")
     try:
