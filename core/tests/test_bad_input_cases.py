@@ -294,6 +294,9 @@ CASES = [
               "ValueError",
               "{d}/json.glb: not a readable GLB file: the JSON is not valid: Expecting ':' "
               "delimiter: line 1 column 13 (char 12)"),
+    mesh_case("gltf_utf16", "glTF JSON in UTF-16", "utf16.gltf",
+              '{"asset": {"version": "2.0"}}'.encode("utf-16"), "ValueError",
+              "{d}/utf16.gltf: not a readable GLTF file: the JSON is not UTF-8 text (byte 0)"),
     mesh_case("gltf_view_range", "glTF bufferView beyond its buffer", "view.gltf",
               json.dumps({"buffers": [{"byteLength": 8, "uri": "x.bin"}],
                           "bufferViews": [{"buffer": 0, "byteOffset": 4, "byteLength": 8}]}),

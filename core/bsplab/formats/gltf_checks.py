@@ -59,8 +59,11 @@ def glb_parts(data: bytes) -> tuple[dict, int | None]:
 
 
 def parse_json(text: bytes) -> dict:
+    """The glTF JSON document; UTF-8 only, as the format says (and as
+    trimesh decodes it: another encoding would send it looking for a
+    package the set-up does not install)."""
     try:
-        doc = json.loads(text)
+        doc = json.loads(text.decode("utf-8"))
     except UnicodeDecodeError as e:
         raise GltfError(f"the JSON is not UTF-8 text (byte {e.start})") from None
     except json.JSONDecodeError as e:
