@@ -17,8 +17,9 @@ WHEELS="$REPO/build/wheels"
 # (blender_tests/in_debian13.sh); outside the clone, so that CI's fresh clones
 # on one machine share it.
 export BSPLAB_DEBIAN13_ROOT="${BSPLAB_DEBIAN13_ROOT:-/var/cache/bsplab/debian13}"
-# What bpy 5.1+ loads at import (libGL, X11, Wayland client): Debian 12 names.
-BPY_SYSTEM_LIBS="libx11-6 libxrender1 libxxf86vm1 libxfixes3 libxi6 libxkbcommon0 libsm6 libgl1 libegl1 libwayland-client0"
+# What bpy 5.1+ loads at import (libGL, X11, Wayland client), and Mesa's EGL
+# and software OpenGL for gpu.init() in background mode (test_gpu_draw.py).
+BPY_SYSTEM_LIBS="libx11-6 libxrender1 libxxf86vm1 libxfixes3 libxi6 libxkbcommon0 libsm6 libgl1 libegl1 libwayland-client0 libegl-mesa0 libgl1-mesa-dri"
 
 log() { printf '\n=== %s: %s\n' "$(basename "$0")" "$*"; }
 die() { printf '%s: error: %s\n' "$(basename "$0")" "$*" >&2; exit 1; }
@@ -114,7 +115,7 @@ ensure_debian13_root() {
     # The core's build (g++; cmake and ninja come from PyPI through pip's build
     # isolation) and bpy 5.2's system libraries come too.
     debootstrap --variant=minbase \
-        --include=python3,python3-venv,python3-dev,ca-certificates,g++,make,libx11-6,libxrender1,libxxf86vm1,libxfixes3,libxi6,libxkbcommon0,libsm6,libgl1,libegl1,libwayland-client0 \
+        --include=python3,python3-venv,python3-dev,ca-certificates,g++,make,libx11-6,libxrender1,libxxf86vm1,libxfixes3,libxi6,libxkbcommon0,libsm6,libgl1,libegl1,libwayland-client0,libegl-mesa0,libgl1-mesa-dri \
         trixie "$root" >"$root.debootstrap.log" 2>&1 || { tail -n 20 "$root.debootstrap.log"; return 1; }
     # pip inside the root trusts what the host's pip trusts, and resolves names like it.
     cp /etc/ssl/certs/ca-certificates.crt "$root/etc/ssl/certs/host-ca-certificates.crt" || return 1
