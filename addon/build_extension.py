@@ -31,6 +31,7 @@ import glob
 import os
 import pathlib
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -277,7 +278,9 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     args.wheel_dir.mkdir(parents=True, exist_ok=True)
-    builders = {"3.11": [args.python], "3.13": [args.python313] if args.python313 else None}
+    # --python313 may be a command line ("blender_tests/in_debian13.sh /usr/bin/python3.13").
+    builders = {"3.11": [args.python],
+                "3.13": shlex.split(args.python313) if args.python313 else None}
     wheels = []
     for target in PYTHON_TARGETS:
         given = [w for w in args.core_wheel if target.core_tag in w.name]

@@ -80,7 +80,7 @@ find_python313() {
     fi
     ensure_debian13_root || return 1
     RUN313="$REPO/blender_tests/in_debian13.sh"
-    PY313=/usr/bin/python3.13
+    PY313="$DEBIAN13_PYTHON"
     echo "Python 3.13: $PY313 in the Debian 13 root $BSPLAB_DEBIAN13_ROOT"
 }
 
@@ -102,11 +102,19 @@ ensure_host_libs() {  # bpy 5.1+'s system libraries on this machine, when missin
     apt_install $missing
 }
 
+# Inside the root: a venv of Debian's python3.13, which has pip (the system
+# Python has none, and Debian leaves it to apt).
+DEBIAN13_PYTHON=/opt/bsplab-python3.13/bin/python
+
 ensure_debian13_root() {
     local root="$BSPLAB_DEBIAN13_ROOT"
-    if [ -f "$root/.bsplab-ready" ]; then
+    if [ -f "$root/.bsplab-ready" ] && [ -x "$root$DEBIAN13_PYTHON" ]; then
         echo "reusing the Debian 13 root $root"
         return 0
+    fi
+    if [ -f "$root/.bsplab-ready" ]; then
+        make_debian13_venv
+        return
     fi
     log "making a Debian 13 root with Python 3.13 in $root (debootstrap, a few minutes)"
     command -v debootstrap >/dev/null || apt_install debootstrap || return 1
@@ -117,11 +125,16 @@ ensure_debian13_root() {
     debootstrap --variant=minbase \
         --include=python3,python3-venv,python3-dev,ca-certificates,g++,make,libx11-6,libxrender1,libxxf86vm1,libxfixes3,libxi6,libxkbcommon0,libsm6,libgl1,libegl1,libwayland-client0,libegl-mesa0,libgl1-mesa-dri \
         trixie "$root" >"$root.debootstrap.log" 2>&1 || { tail -n 20 "$root.debootstrap.log"; return 1; }
-    # pip inside the root trusts what the host's pip trusts, and resolves names like it.
-    cp /etc/ssl/certs/ca-certificates.crt "$root/etc/ssl/certs/host-ca-certificates.crt" || return 1
+    # Names resolve as on the host (in_debian13.sh brings the host's CA bundle).
     cp /etc/resolv.conf "$root/etc/resolv.conf" 2>/dev/null || true
-    "$REPO/blender_tests/in_debian13.sh" /usr/bin/python3.13 -c 'import ssl, venv' || return 1
     touch "$root/.bsplab-ready"
+    make_debian13_venv
+}
+
+make_debian13_venv() {
+    rm -rf "$BSPLAB_DEBIAN13_ROOT${DEBIAN13_PYTHON%/bin/python}"
+    "$REPO/blender_tests/in_debian13.sh" /usr/bin/python3.13 -m venv "${DEBIAN13_PYTHON%/bin/python}" &&
+        "$REPO/blender_tests/in_debian13.sh" "$DEBIAN13_PYTHON" -c 'import ssl, pip'
 }
 
 build_extension() {  # needs find_python313 first

@@ -8,7 +8,7 @@
 # repository, /tmp, /proc, /sys and /dev are bound into it at the same paths,
 # in a mount namespace of this command's own (unshare), so paths mean the same
 # inside and out and no mount outlives the command. The working directory and
-# the environment carry over; pip trusts the host's certificates. Needs root.
+# the environment carry over. Needs root.
 
 set -euo pipefail
 
@@ -16,7 +16,11 @@ ROOT="${BSPLAB_DEBIAN13_ROOT:-/var/cache/bsplab/debian13}"
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 [ -x "$ROOT/usr/bin/python3.13" ] || { echo "in_debian13.sh: no Debian 13 root at $ROOT" >&2; exit 1; }
 
-export PIP_CERT="${PIP_CERT:-/etc/ssl/certs/host-ca-certificates.crt}"
+# pip inside trusts what the host trusts (a proxy's own CA, say): the host's
+# bundle replaces the root's, every time, so any variable naming
+# /etc/ssl/certs/ca-certificates.crt (PIP_CERT, SSL_CERT_FILE...) means it.
+cp /etc/ssl/certs/ca-certificates.crt "$ROOT/etc/ssl/certs/ca-certificates.crt"
+export PIP_CERT=/etc/ssl/certs/ca-certificates.crt
 export BSPLAB_IN_ROOT="$ROOT" BSPLAB_IN_REPO="$REPO" BSPLAB_IN_CWD="$PWD"
 exec unshare --mount --propagation private bash -c '
 set -e
