@@ -48,7 +48,7 @@ class PythonTarget:
     def __init__(self, version, blenders, core_tag, embreex_abi):
         self.version = version          # "3.11"
         self.blenders = blenders        # for messages
-        self.core_tag = core_tag        # in the bsplab wheel's name, e.g. "-cp311-"
+        self.core_tag = core_tag        # in the bsplab wheel's name, e.g. "-cp311-cp311-"
         self.embreex_abi = embreex_abi  # pip download --abi
 
 

@@ -27,7 +27,7 @@ die() { printf '%s: error: %s\n' "$(basename "$0")" "$*" >&2; exit 1; }
 check_python() {
     { [ -x "$PY" ] || command -v "$PY" >/dev/null; } || die "no project Python at $PY"
     "$PY" -c 'import sys; assert sys.version_info[:2] == (3, 11), sys.version' \
-        || die "$PY is not Python 3.11 (bpy 4.2/5.0 and the bundled wheels need 3.11)"
+        || die "$PY is not Python 3.11 (bpy 4.2 - 5.0 and the cp311 wheels need 3.11)"
 }
 
 ensure_bpy_venv() {  # DIR BPY_VERSION [PYTHON RUNNER]: RUNNER prefixes every command ("" on the host)
