@@ -82,8 +82,10 @@ results: core
 results-quick: core
 	$(BIN)/python -m bsplab results --quick
 
+# The extension zip for Blender 4.2 - 5.2: the core's wheels for CPython 3.11
+# and 3.13 (python313.sh finds this machine's 3.13 or makes a Debian 13 root).
 addon: core
-	$(BIN)/python addon/build_extension.py
+	$(BIN)/python addon/build_extension.py --python313 "$$(bash blender_tests/python313.sh)"
 
 scenes: core
 	$(BIN)/python -m bsplab scenes --out scenes

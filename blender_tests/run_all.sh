@@ -1,20 +1,26 @@
 #!/usr/bin/env bash
-# Run the add-on's test suite on every supported Blender:
-#   1. bpy 4.2.23 (pip module, in-process pytest)
-#   2. bpy 5.0.1  (pip module, in-process pytest)
-#   3. Debian's Blender 3.4.1 binary (pytest inside Blender)
+# Run the add-on's test suite on every tested Blender:
+#   1. bpy 4.2.23 LTS (pip module, Python 3.11, in-process pytest): the manifest's minimum
+#   2. bpy 4.5.15 LTS (Python 3.11)
+#   3. bpy 5.0.1      (Python 3.11)
+#   4. bpy 5.2.3 LTS  (Python 3.13: this machine's own 3.13, else the Debian 13
+#      root's, blender_env.sh's find_python313)
+#   5. Debian's Blender 3.4.1 binary (pytest inside Blender; the legacy add-on)
 #
 #   blender_tests/run_all.sh [PROJECT_PYTHON]
 #
 # PROJECT_PYTHON (default: $PYTHON, else .venv/bin/python) is a Python 3.11
 # that can build core/ (scikit-build-core, nanobind). The script
-# - creates or reuses .venv-bpy42/ and .venv-bpy50/ (git-ignored) with bpy,
-#   numpy < 2 and pytest;
-# - builds the bsplab wheel and the extension zip (addon/build_extension.py,
-#   which also validates the zip with Blender's own tool);
-# - installs the bsplab and embreex wheels into build/blender-deps/, put on
-#   the path of each run (PYTHONPATH, or BSPLAB_PYTHONPATH inside Blender),
-#   so the extension test can check that the zip alone brings the core;
+# - creates or reuses .venv-bpy42/, -45/, -50/ and -52/ (git-ignored) with
+#   bpy, the numpy that release ships (< 2 for 3.11, bpy 5.2's own pin) and
+#   pytest;
+# - builds the bsplab wheels (cp311, and cp312-abi3 with the Python 3.13) and
+#   the extension zip (addon/build_extension.py, which also validates the zip
+#   with each bpy's copy of Blender's own tool);
+# - installs the bsplab and embreex wheels into build/blender-deps/ (3.11)
+#   and build/blender-deps-313/, put on the path of each run (PYTHONPATH, or
+#   BSPLAB_PYTHONPATH inside Blender), so the extension test can check that
+#   the zip alone brings the core;
 # - apt-installs Debian's blender, python3-numpy and python3-pytest unless
 #   they are already there;
 # - with BSPLAB_GUI_CHECK=1, also drives the modal operator (worker thread,
@@ -31,10 +37,23 @@ PY="${1:-${PYTHON:-$REPO/.venv/bin/python}}"
 . "$REPO/blender_tests/blender_env.sh"
 check_python
 
+declare -a TIMES=()
+SECONDS=0
+lap() {  # NAME: the time since the last lap
+    TIMES+=("$(printf '%-44s %4d s' "$1" "$SECONDS")")
+    SECONDS=0
+}
+
 ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
+ensure_bpy_venv "$REPO/.venv-bpy45" 4.5.15 || die "could not set up bpy 4.5.15"
 ensure_bpy_venv "$REPO/.venv-bpy50" 5.0.1 || die "could not set up bpy 5.0.1"
+find_python313 || die "no Python 3.13 for bpy 5.2"
+ensure_bpy_venv "$REPO/.venv-bpy52" 5.2.3 "$PY313" "$RUN313" || die "could not set up bpy 5.2.3"
+lap "set-up: bpy venvs (reused when present)"
 build_extension || die "addon/build_extension.py failed"
 install_deps || die "could not install the wheels into $DEPS"
+install_deps313 "$REPO/.venv-bpy52" || die "could not install the wheels into $DEPS313"
+lap "set-up: wheels, zip, validation"
 
 export BSPLAB_STRICT=1 BSPLAB_EXTENSION_ZIP="$ZIP"
 declare -a RESULTS=()
@@ -54,28 +73,36 @@ count() {  # WORD: the sum of "N WORD" over pytest's closing lines
 
 # --- bpy module runs ---------------------------------------------------------
 
-for venv in .venv-bpy42 .venv-bpy50; do
-    log "pytest on $venv"
+run_bpy_suite() {  # VENV DEPS [RUNNER]
+    local venv="$1" deps="$2" runner="${3:-}" name
+    # shellcheck disable=SC2086  # RUNNER is empty or one path
+    name="$($runner "$REPO/$venv/bin/python" -c 'import importlib.metadata as m, sys
+print("bpy %s (Python %d.%d)" % ((m.version("bpy"),) + sys.version_info[:2]))')"
+    log "pytest on $venv: $name"
     USER_DIR="$(mktemp -d)"
-    PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$USER_DIR" \
-        "$REPO/$venv/bin/python" -m pytest blender_tests -p no:cacheprovider -ra 2>&1 \
+    # shellcheck disable=SC2086
+    PYTHONPATH="$deps" BLENDER_USER_RESOURCES="$USER_DIR" \
+        $runner "$REPO/$venv/bin/python" -m pytest blender_tests -p no:cacheprovider -ra 2>&1 \
         | tee "$LOGS/${venv#.}.log"
-    record "$("$REPO/$venv/bin/python" -c 'import importlib.metadata as m; print("bpy", m.version("bpy"))')" "${PIPESTATUS[0]}"
+    record "$name" "${PIPESTATUS[0]}"
     rm -rf "$USER_DIR"
-done
+    lap "suite: $name"
+}
+
+run_bpy_suite .venv-bpy42 "$DEPS"
+run_bpy_suite .venv-bpy45 "$DEPS"
+run_bpy_suite .venv-bpy50 "$DEPS"
+run_bpy_suite .venv-bpy52 "$DEPS313" "$RUN313"
 
 # --- Debian's Blender binary ---------------------------------------------------
 
-SUDO_CMD=""
-[ "$(id -u)" -eq 0 ] || SUDO_CMD="sudo"
 export DEBIAN_FRONTEND=noninteractive
 
 if command -v blender >/dev/null && /usr/bin/python3 -c 'import numpy, pytest' 2>/dev/null; then
     echo "blender, python3-numpy and python3-pytest already installed"
 else
     log "installing Debian's blender"
-    $SUDO_CMD env DEBIAN_FRONTEND=noninteractive apt-get update -q && $SUDO_CMD env DEBIAN_FRONTEND=noninteractive apt-get install -y -q blender python3-numpy python3-pytest \
-        || die "apt-get install blender failed"
+    apt_install blender python3-numpy python3-pytest || die "apt-get install blender failed"
 fi
 
 BLENDER_VERSION="$(blender --version 2>/dev/null | head -n 1)"
@@ -86,13 +113,14 @@ BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$USER_DIR" \
     --python blender_tests/run_in_blender.py 2>&1 | tee "$LOGS/blender.log"
 record "$BLENDER_VERSION" "${PIPESTATUS[0]}"
 rm -rf "$USER_DIR"
+lap "suite: $BLENDER_VERSION (with its apt install)"
 
 # --- optional: the modal operator in a real window ---------------------------
 
 if [ "${BSPLAB_GUI_CHECK:-0}" = 1 ]; then
     if ! command -v xvfb-run >/dev/null || ! command -v xdotool >/dev/null; then
         log "installing xvfb and xdotool"
-        $SUDO_CMD apt-get install -y -q xvfb xdotool imagemagick || die "apt-get install xvfb failed"
+        apt_install xvfb xdotool imagemagick || die "apt-get install xvfb failed"
     fi
     log "modal Build & Render in a window (Xvfb)"
     GUI_OUT="$REPO/build/gui_check"
@@ -110,7 +138,9 @@ fi
 
 log "summary"
 printf '  %s\n' "${RESULTS[@]}"
-# One closing line over the three runs (a failed run may have no counts:
+echo "time of each part:"
+printf '  %s\n' "${TIMES[@]}"
+# One closing line over the five runs (a failed run may have no counts:
 # STATUS is what decides).
 FAILED=$(( $(count failed) + $(count error) ))
 [ "$STATUS" -eq 0 ] || [ "$FAILED" -gt 0 ] || FAILED=1

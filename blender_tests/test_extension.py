@@ -76,12 +76,33 @@ def test_zip_contents():
                    "preview.py", "camera.py", "jobs.py", "sweep.py"):
         assert module in names
     wheels = manifest["wheels"]
-    assert any(pathlib.Path(w).name.startswith("bsplab-") for w in wheels)
-    assert any(pathlib.Path(w).name.startswith("embreex-") for w in wheels)
     for wheel in wheels:
         assert wheel.lstrip("./") in names
-        assert "-cp311-" in wheel
+    # Blender 4.2 - 5.0 embed CPython 3.11, 5.1 - 5.2 CPython 3.13: the core
+    # for each (3.13's through the stable ABI) and embreex for each.
+    tags = sorted(wheel_tags(w) for w in wheels)
+    assert tags == [("bsplab", "cp311-cp311"), ("bsplab", "cp312-abi3"),
+                    ("embreex", "cp311-cp311"), ("embreex", "cp313-cp313")], tags
+    assert manifest["blender_version_min"] == "4.2.0"
+    assert manifest["blender_version_max"] == "5.3.0"
     assert "build_extension.py" not in names
+
+
+def wheel_tags(wheel):
+    """("bsplab", "cp311-cp311") from ./wheels/bsplab-0.1.0-cp311-cp311-linux_x86_64.whl."""
+    parts = pathlib.Path(wheel).name.split("-")
+    return parts[0], "-".join(parts[-3:-1])
+
+
+@needs_extensions
+def test_blender_takes_its_pythons_wheels():
+    """Blender's own wheel filter keeps one core and one embreex for this Python."""
+    bl_extension_ops = pytest.importorskip("bl_pkg.bl_extension_ops")
+    tomllib = pytest.importorskip("tomllib")
+    with zipfile.ZipFile(extension_zip()) as archive:
+        wheels = tomllib.loads(archive.read("blender_manifest.toml").decode())["wheels"]
+    kept = bl_extension_ops._extensions_wheel_filter_for_this_system(wheels)
+    assert sorted(wheel_tags(w)[0] for w in kept) == ["bsplab", "embreex"], kept
 
 
 @needs_extensions
