@@ -173,6 +173,12 @@ def test_runs_on_a_cpu_with_only_sse2(tmp_path):
         pytest.skip("qemu-x86_64 not installed (apt-get install qemu-user)")
     out = tmp_path / "qemu64.npz"
     env = {k: v for k, v in os.environ.items() if k != "BSPLAB_ISA"}
+    # Some machines set OPENBLAS_CORETYPE to their own CPU (e.g. Haswell, where
+    # OpenBLAS's detection is unreliable); numpy's import-time dot would then run
+    # AVX2 kernels on the emulated CPU and die of SIGILL before bsplab loads. The
+    # emulated CPU is an SSE3 one: name OpenBLAS's kernel for it.
+    if "OPENBLAS_CORETYPE" in env:
+        env["OPENBLAS_CORETYPE"] = "Prescott"
     proc = subprocess.run([qemu, "-cpu", "qemu64", sys.executable, "-c", CASES_SCRIPT, str(out),
                            str(Path(__file__).parent), "generated"],
                           env=env, capture_output=True, text=True, timeout=900)
