@@ -116,13 +116,14 @@ struct SegmentBox {
 // The counters are a compile-time policy of the traversal: CountEvery keeps
 // the heatmaps' and the statistics' counts of one ray, CountNothing is the
 // hits-only path, whose empty hooks leave no counting code behind. The hooks
-// say what the traversal does (a node visited over [t0, t1], a triangle
+// say what the traversal does (a node visited over the walk's [s0, s1],
+// t = t_e + s, walk_start.hpp; a triangle
 // culled, skipped by the mailbox, tested, hit or missed), so that a policy
 // can also record the whole walk: trace_path.cpp's PathRecord does, for the
 // ray inspector, with this very loop.
 struct CountEvery {
     uint32_t steps = 0, general_steps = 0, tests = 0, culled = 0;
-    void step(uint32_t /*node*/, float /*t0*/, float /*t1*/) { ++steps; }
+    void step(uint32_t /*node*/, float /*s0*/, float /*s1*/, double /*t_e*/) { ++steps; }
     void general_step() { ++general_steps; }
     void cull(uint32_t /*prim*/) { ++culled; }
     void seen(uint32_t /*prim*/) {}
@@ -138,7 +139,7 @@ struct CountEvery {
 };
 
 struct CountNothing {
-    void step(uint32_t, float, float) {}
+    void step(uint32_t, float, float, double) {}
     void general_step() {}
     void cull(uint32_t) {}
     void seen(uint32_t) {}
@@ -327,7 +328,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
 
     for (;;) {
         const Node node = nodes[index];
-        count.step(index, float(t_e + t0), float(t_e + t1));
+        count.step(index, t0, t1, t_e);
         if (kGeneral ? !node.is_leaf() : node.is_kd()) {
             // Both kinds reduce to: where the ray crosses the plane, and
             // which child it enters from. Before the crossing the ray is on

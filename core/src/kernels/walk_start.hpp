@@ -38,22 +38,19 @@ constexpr float kCrossRel = 1.0f / (1 << 21);
 // The double precision rounding of o + t_e d, relative to |o| + |t_e d|.
 constexpr double kOriginRel = 1.0 / double(1ull << 50);
 
-// The t (in double) at which the ray o + t d enters box b; 0 when it starts
-// inside the box (the walk then starts at the ray's origin). A ray that
-// misses the box by a rounding (aimed at a wall in the box's face) still
-// starts where it comes closest, the largest of its near crossings: the
-// float clip, widened, decides; falling back to the far origin made such
-// rays walk the whole tree.
-inline double box_entry(const Box& b, const float o[3], const float d[3]) {
-    double t0 = 0.0;
+// The t at which the ray o + t d enters box b, from the float crossings of
+// its faces; 0 when it starts inside the box (the walk then starts at the
+// ray's origin). It need not be exact: the walk origin is the ray's point at
+// exactly this t (in double), and only that point's rounding to float
+// enters the bounds. A ray that misses the box by a rounding (aimed at a
+// wall in the box's face) still starts where it comes closest, the largest
+// of its near crossings, and the widened float clip decides; falling back
+// to the far origin made such rays walk the whole tree.
+inline float box_entry(const Box& b, const float o[3], const float d[3], const float idir[3]) {
+    float t0 = 0.0f;
     for (int k = 0; k < 3; ++k) {
-        if (d[k] == 0.0f) {
-            if (o[k] < b.lo[k] || o[k] > b.hi[k]) return 0.0;
-            continue;
-        }
-        const double inv = 1.0 / double(d[k]);
-        const double tn = std::min((double(b.lo[k]) - o[k]) * inv, (double(b.hi[k]) - o[k]) * inv);
-        t0 = std::max(t0, tn);
+        if (d[k] == 0.0f) continue;  // outside the slab: the clip rejects it
+        t0 = std::max(t0, std::min((b.lo[k] - o[k]) * idir[k], (b.hi[k] - o[k]) * idir[k]));
     }
     return t0;
 }
@@ -105,13 +102,21 @@ struct WalkStart {
         // coordinates), n.org (at most |org|_1, n being unit) and s n.d (at
         // most |s| |d|_1); plus the rounding of org itself.
         constexpr float kCrossUlps = 1.0f / (1 << 20);  // 16 roundings of 2^-24
-        t_e = box_entry(bounds, o, d);
+        t_e = box_entry(bounds, o, d, idir);
+        if (t_e == 0.0) {  // inside the box: the ray's own origin, exactly
+            for (int k = 0; k < 3; ++k) org[k] = test_org[k] = o[k], org_err[k] = 0.0f;
+            test_t = 0.0;
+            cross_a = kCrossUlps * (two_scene_scale + std::fabs(o[0]) + std::fabs(o[1]) +
+                                    std::fabs(o[2]));
+            cross_b = kCrossUlps * (std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]));
+            return;
+        }
         double far = 0.0;
         for (int k = 0; k < 3; ++k) {
             const double moved = double(o[k]) + t_e * double(d[k]);
-            org[k] = t_e == 0.0 ? o[k] : float(moved);
+            org[k] = float(moved);
             // Parallel to the axis the origin does not move (t_e * 0 = 0).
-            const double err = t_e == 0.0 || d[k] == 0.0
+            const double err = d[k] == 0.0
                                    ? 0.0
                                    : (kCrossRel * std::fabs(double(org[k])) +
                                       kOriginRel * (std::fabs(double(o[k])) +
