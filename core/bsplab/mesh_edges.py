@@ -65,13 +65,21 @@ def crosses_surface(tris: np.ndarray, groups: np.ndarray, prim: int, edge: int,
     return False
 
 
-def silhouette_vertex(tris: np.ndarray, prim: int, vertex: int, direction: np.ndarray) -> bool:
+def touching_vertex(tris: np.ndarray, shared: np.ndarray, prim: int, vertex: int,
+                    direction: np.ndarray) -> bool:
     """Whether a ray along `direction` through vertex `vertex` of triangle
-    `prim` may only touch the surface there: some triangle around the vertex
-    faces the ray the other way (a corner of a box seen from outside)."""
+    `prim` may rightly miss every triangle there: the vertex lies on an open
+    edge (the surface's border: no closed fan around it), or some triangle
+    around it faces the ray the other way (a corner of a box seen from
+    outside, which the ray only touches). `shared` is shared_mask(tris)."""
     t = np.asarray(tris, np.float32)
     v = t[prim, vertex]
-    around = t[(t == v).all(axis=2).any(axis=1)].astype(np.float64)
+    at = (t == v).all(axis=2)  # (N, 3): triangle i has the vertex as its corner j
+    rows, corner = np.nonzero(at)
+    # The two edges of a triangle at its corner j: j -> j + 1 and j - 1 -> j.
+    if not (shared[rows, corner] & shared[rows, (corner + 2) % 3]).all():
+        return True
+    around = t[rows].astype(np.float64)
     n = np.cross(around[:, 1] - around[:, 0], around[:, 2] - around[:, 0])
     facing = n @ np.asarray(direction, np.float64)
     return bool((facing > 0).any() and (facing < 0).any())

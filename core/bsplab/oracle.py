@@ -271,6 +271,7 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     # Excused: near an edge the ray does not cross the surface through - an
     # open edge, or a silhouette edge (mesh_edges.crosses_surface).
     groups = mesh_edges.edge_groups(tris)
+    shared = mesh_edges.shared_mask(tris)
     excused = np.zeros(len(idx), bool)
     for row, edge in zip(*np.nonzero(near)):
         if not excused[row] and not mesh_edges.crosses_surface(tris, groups, int(prim[row]),
@@ -281,8 +282,8 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     for row in np.flatnonzero(~excused & (near.sum(axis=1) >= 2)):
         j = [e for e in range(3) if near[row, e]]
         vertex = (j[1] if j[1] == j[0] + 1 else j[0]) if len(j) == 2 else 0
-        excused[row] = len(j) == 3 or mesh_edges.silhouette_vertex(
-            tris, int(prim[row]), vertex, d[row])
+        excused[row] = len(j) == 3 or mesh_edges.touching_vertex(
+            tris, shared, int(prim[row]), vertex, d[row])
     t3 = tris[prim].astype(np.float64)
     excused |= np.abs(np.cross(t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0])).sum(axis=1) == 0
     hi = np.full(len(idx), np.inf) if tmax is None else \
