@@ -1,4 +1,4 @@
-"""Command line: `python -m bsplab {demo,bench,bench-family,bench-cull,bench-build,experiment,
+"""Command line: `python -m bsplab {demo,bench,bench-family,bench-families,bench-cull,bench-build,experiment,
 report,results,verdict,agree,calibrate,scenes,methods}`."""
 
 from __future__ import annotations
@@ -204,6 +204,17 @@ def cmd_verdict(args) -> int:
                                command=benchmarks.command_line())
 
 
+def cmd_bench_families(args) -> int:
+    import bsplab
+    from bsplab.lab import family_bench
+    methods = list(bsplab.methods()) if args.methods in (None, ["all"]) else args.methods
+    rows = family_bench.run(args.scenes, methods, args.rays, k=args.k, rounds=args.repeats)
+    bad = sum(r["leaks"] + r["unexplained"] + sum(r["paths"].values()) for r in rows)
+    print(f"\n{bad} leaks, unexplained disagreements and path differences in {len(rows)} "
+          "scene x method x family cells")
+    return 1 if bad else 0
+
+
 def cmd_agree(args) -> int:
     import bsplab
     from bsplab import agreement
@@ -314,6 +325,16 @@ def main(argv=None) -> int:
     u.add_argument("--repeats", type=whole(1), help="paired rounds (default 3)")
     u.add_argument("--out", help="write Markdown here (rows in data/ beside it)")
     u.set_defaults(func=cmd_cull)
+
+    bf = sub.add_parser("bench-families",
+                        help="per method and ray family: steps, tests, time / Embree, leaks, "
+                             "and the paths' agreement")
+    bf.add_argument("--scenes", nargs="+", default=["room", "spheres"])
+    bf.add_argument("--methods", nargs="*", help="default: every method")
+    bf.add_argument("--rays", type=whole(1), default=2000, help="rays per family")
+    bf.add_argument("--k", type=whole(1), help="K of the methods that take one")
+    bf.add_argument("--repeats", type=whole(1), default=3, help="paired rounds (default 3)")
+    bf.set_defaults(func=cmd_bench_families)
 
     bb = sub.add_parser("bench-build", help="kd build time against Embree's BVH build")
     bb.add_argument("--scenes", nargs="+", help="default: the seven shared meshes")

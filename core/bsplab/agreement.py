@@ -12,6 +12,13 @@ import numpy as np
 from . import oracle, ray_families
 
 
+# The families whose rays cross a surface through a shared edge or vertex
+# lying in split planes, or come from far away: there a miss or a farther hit
+# than Embree's is a leak (oracle.leaks). Rays along an edge or in a plane
+# touch rather than cross; oracle.compare judges those.
+CROSSING_FAMILIES = ("edges_in_split_planes", "through_edges", "far_away")
+
+
 class FamilyRays:
     """The rays of every family on one scene, and Embree's answers, made once."""
 
@@ -27,13 +34,17 @@ class FamilyRays:
 
     def check(self, tree, *, cull: bool = True, counters: bool = True) -> dict:
         """Per family: the oracle's comparison of the tree's hits with Embree's
-        (`counters=False`: traced on the hits-only path)."""
+        (`counters=False`: traced on the hits-only path), with "leaks" on the
+        CROSSING_FAMILIES (an empty array on the others)."""
         out = {}
         for name, (o, d, tmax, ref) in self.rays.items():
             hits = tree.intersect(o, d, tmax=tmax, cull=cull, counters=counters)
             out[name] = oracle.compare(hits, ref, triangles=self.triangles, origins=o,
                                        directions=d, tmax=tmax)
             out[name]["hits"] = hits
+            out[name]["leaks"] = (
+                oracle.leaks(hits, ref, triangles=self.triangles, origins=o, directions=d,
+                             tmax=tmax) if name in CROSSING_FAMILIES else np.zeros(0, int))
         return out
 
 

@@ -91,10 +91,12 @@ def _hit_rows(triangles, prim, origins, directions):
 
 
 def edge_distance(triangles: np.ndarray, prim: np.ndarray, origins: np.ndarray,
-                  directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                  directions: np.ndarray, per_edge: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance (double precision) from each ray's crossing of the plane
     of triangle prim[i] to that triangle's boundary (negative: outside), and
-    the magnitude of the coordinates involved. NaN where prim < 0."""
+    the magnitude of the coordinates involved. NaN where prim < 0.
+    `per_edge`: the distances to each of its three lines instead, (N, 3),
+    column j the edge from vertex j to vertex j + 1."""
     dist = np.full(len(prim), np.nan)
     scale = np.full(len(prim), np.nan)
     ok, tri, o, d = _hit_rows(triangles, prim, origins, directions)
@@ -114,6 +116,11 @@ def edge_distance(triangles: np.ndarray, prim: np.ndarray, origins: np.ndarray,
     heights = twice_area[:, None] / np.maximum(opposite, 1e-300)
     dist[ok] = (bary * heights).min(axis=1)
     scale[ok] = np.maximum(np.abs(tri).max(axis=(1, 2)), np.abs(o).max(axis=1))
+    if per_edge:
+        # Column j: the edge from vertex j to vertex j + 1 (opposite vertex j + 2).
+        edges = np.full((len(prim), 3), np.nan)
+        edges[ok] = (bary * heights)[:, [2, 0, 1]]
+        return edges, scale
     return dist, scale
 
 
@@ -225,3 +232,68 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
         "disagreeing": bad,
         "unexplained": bad[~(grazing | at_ends | degenerate)] if triangles is not None else bad,
     }
+
+
+# Rays closer than this (the cosine of their angle to the normal) to a
+# triangle's plane are taken as lying in it by the leak check.
+PARALLEL_COS = 1e-4
+
+
+def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
+          rel_tol: float = 1e-4, edge_ulps: float = 8.0) -> np.ndarray:
+    """The rays that went through the surface: Embree hits, and we miss or
+    hit farther (beyond rel_tol of its t). Not counted: rays that graze an
+    open (unshared) edge of the triangle Embree hit, where a single-precision
+    test may rightly miss, or a silhouette edge (a convex corner the ray only
+    touches), hits on zero-area triangles, hits at the segment's
+    start (t = 0: a ray leaving a surface) or end (tmax), and rays within
+    PARALLEL_COS of the hit triangle's plane (a ray lying in it: where it
+    crosses the plane is not decided by the float data). A shared edge is no
+    excuse: one of its triangles must be hit whatever the rounding
+    (mesh_edges). Returns the indices."""
+    from . import mesh_edges
+
+    pa, pb = ours["prim"], ref["prim"]
+    ta, tb = ours["t"].astype(np.float64), ref["t"].astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        farther = (pa < 0) | (ta > tb + rel_tol * np.maximum(np.abs(tb), 1e-30))
+    idx = np.flatnonzero((pb >= 0) & farther)
+    if not len(idx):
+        return idx
+    tris = np.asarray(triangles, np.float32)
+    prim = pb[idx]
+    o, d = origins[idx], directions[idx]
+    with np.errstate(all="ignore"):
+        dist, scale = edge_distance(tris, prim, o, d, per_edge=True)
+        t, err = plane_distance(tris, prim, o, d)
+        along = err * np.linalg.norm(d.astype(np.float64), axis=1)
+        near = np.abs(dist) <= edge_ulps * (np.finfo(np.float32).eps * scale + along)[:, None]
+    # Excused: near an edge the ray does not cross the surface through - an
+    # open edge, or a silhouette edge (mesh_edges.crosses_surface).
+    groups = mesh_edges.edge_groups(tris)
+    shared = mesh_edges.shared_mask(tris)
+    excused = np.zeros(len(idx), bool)
+    for row, edge in zip(*np.nonzero(near)):
+        if not excused[row] and not mesh_edges.crosses_surface(tris, groups, int(prim[row]),
+                                                               int(edge), d[row]):
+            excused[row] = True
+    # Near two edges: through their common vertex, which may be a corner
+    # the ray only touches.
+    for row in np.flatnonzero(~excused & (near.sum(axis=1) >= 2)):
+        j = [e for e in range(3) if near[row, e]]
+        vertex = (j[1] if j[1] == j[0] + 1 else j[0]) if len(j) == 2 else 0
+        excused[row] = len(j) == 3 or mesh_edges.touching_vertex(
+            tris, shared, int(prim[row]), vertex, d[row])
+    t3 = tris[prim].astype(np.float64)
+    excused |= np.abs(np.cross(t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0])).sum(axis=1) == 0
+    hi = np.full(len(idx), np.inf) if tmax is None else \
+        np.broadcast_to(np.asarray(tmax, np.float64), (len(pa),))[idx]
+    n = np.cross(t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0])
+    d64 = d.astype(np.float64)
+    with np.errstate(all="ignore"):
+        tol = edge_ulps * (err + np.finfo(np.float32).eps * np.abs(t))
+        excused |= (np.abs(t) <= tol) | (np.abs(t - hi) <= tol)
+        cos = np.abs(np.einsum("ij,ij->i", n, d64)) / (
+            np.linalg.norm(n, axis=1) * np.linalg.norm(d64, axis=1))
+        excused |= ~(cos > PARALLEL_COS)
+    return idx[~excused]

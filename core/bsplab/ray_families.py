@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from . import mesh_edges
 from .camera import Camera
 from .workloads import bounds, framing_camera, random_rays
 
@@ -172,6 +173,61 @@ def long_rays(tris, n, rng):
     return np.concatenate([o1, o2]), np.concatenate([d1, d2])
 
 
+def edges_in_split_planes(tris, n, rng):
+    """Aimed exactly through shared edges and vertices that lie in split
+    planes: half of them at edges whose two end points share a coordinate
+    (the edge lies in that axis plane, where kd and ^Kd trees split: at
+    triangle bounds), the rest at any shared edge (it lies in both of its
+    triangles' planes, the wn / cn / IZE candidates), one in five at a shared
+    vertex. From outside the box and from inside it. A miss or a farther hit
+    there, where Embree hits, is a leak (oracle.leaks): a closed surface's
+    shared edge is hit by one of its triangles whatever the rounding."""
+    lo, hi, ext = _box(tris)
+    edges = mesh_edges.shared_edges(tris)
+    if len(edges) == 0:
+        return through_edges(tris, n, rng)
+    in_axis = np.flatnonzero((edges[:, 0] == edges[:, 1]).any(axis=1))
+    pick = rng.integers(0, len(edges), n)
+    if len(in_axis):
+        half = rng.random(n) < 0.5
+        pick[half] = in_axis[rng.integers(0, len(in_axis), int(half.sum()))]
+    e = edges[pick].astype(np.float64)
+    s = np.where(rng.random(n) < 0.5, 0.5, rng.random(n))
+    s[rng.random(n) < 0.2] = 0.0  # the vertex itself
+    targets = e[:, 0] + s[:, None] * (e[:, 1] - e[:, 0])
+    outside = rng.random(n) < 0.5
+    origins = np.where(outside[:, None],
+                       (lo + hi) / 2 + _sphere(rng, n) * float(np.linalg.norm(ext)) *
+                       rng.uniform(0.6, 2.0, (n, 1)),
+                       rng.uniform(lo, hi, (n, 3)))
+    return _aim(origins, targets)
+
+
+def along_edges(tris, n, rng):
+    """Lying along shared edges (in both triangles' planes, and in axis
+    planes for axis-aligned edges): from before one end point, along the
+    edge. The rays of a renderer's grazing bounces and of edge-on walls;
+    they must cost about what camera rays cost."""
+    edges = mesh_edges.shared_edges(tris)
+    if len(edges) == 0:
+        return in_planes(tris, n, rng)
+    e = edges[rng.integers(0, len(edges), n)].astype(np.float64)
+    a, b = e[:, 0], e[:, 1]
+    back = rng.uniform(0.0, 2.0, (n, 1))
+    flip = rng.random(n) < 0.5
+    a[flip], b[flip] = b[flip].copy(), a[flip].copy()
+    return _aim(a - back * (b - a), b)
+
+
+def far_away(tris, n, rng):
+    """From a million scene sizes away towards points of the scene: the
+    traversal's tolerances must follow the segment inside the box, not |o|."""
+    lo, hi, ext = _box(tris)
+    centre, size = (lo + hi) / 2, float(np.linalg.norm(ext))
+    origins = centre + _sphere(rng, n) * size * 1e6
+    return _aim(origins, _surface_points(tris, n, rng))
+
+
 def _camera_rays(cam: Camera, n: int) -> tuple:
     side = max(1, int(np.sqrt(n)))
     return cam.rays(side, max(1, n // side))
@@ -210,6 +266,9 @@ FAMILIES: dict[str, Family] = {
     "from_surfaces": from_surfaces,
     "short_segments": short_segments,
     "long_rays": long_rays,
+    "edges_in_split_planes": edges_in_split_planes,
+    "along_edges": along_edges,
+    "far_away": far_away,
 }
 
 

@@ -29,7 +29,9 @@ class PathRecord {
 public:
     explicit PathRecord(const Tree& tree) : tree_(tree) { depth_of_[0] = 0; }
 
-    void step(uint32_t index, float t0, float t1) {
+    // The walk's range [s0, s1] from t_e, back in the ray's t.
+    void step(uint32_t index, float s0, float s1, double t_e) {
+        const float t0 = float(t_e + s0), t1 = float(t_e + s1);
         const Node& node = tree_.nodes[index];
         const int32_t depth = depth_of_.at(index);
         path_.steps.push_back({index, depth, uint8_t(node.kind()), t0, t1});

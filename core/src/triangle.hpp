@@ -9,13 +9,19 @@
 
 namespace bsp {
 
-// Per-ray constants of the shear transform, computed once per ray.
+// Per-ray constants of the shear transform, computed once per ray. The ray
+// may be tested from a point on it (the traversal's walk origin inside the
+// scene box, kernels/walk_start.hpp): `t_offset` is that point's t, added
+// back to the distances, so that a ray from far away is tested with the
+// precision of a point near the triangles, not of |o|.
 struct ShearedRay {
     Vec3 org, dir;
     int kx, ky, kz;
     float sx, sy, sz;
+    double t_offset = 0.0;
 
-    explicit ShearedRay(const Vec3& o, const Vec3& d) : org(o), dir(d) {
+    explicit ShearedRay(const Vec3& o, const Vec3& d, double t_off = 0.0)
+        : org(o), dir(d), t_offset(t_off) {
         float ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);
         kz = (ax > ay) ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
         kx = kz == 2 ? 0 : kz + 1;
@@ -37,6 +43,11 @@ inline double plane_distance(const Triangle& tri, const Vec3& o, const Vec3& d) 
     return num / (n[0] * d.x + n[1] * d.y + n[2] * d.z);
 }
 
+// The ray's t at the triangle's plane: from its test origin, plus t_offset.
+inline double ray_distance(const Triangle& tri, const ShearedRay& r) {
+    return r.t_offset + plane_distance(tri, r.org, r.dir);
+}
+
 struct TriangleHit {
     float t, u, v;
 };
@@ -51,9 +62,11 @@ inline float component(const Vec3& v, int k) {
 }
 
 // Returns true and fills `hit` when the ray hits the triangle with
-// tmin < t < tmax. u, v follow Embree: p = (1-u-v) v0 + u v1 + v v2.
+// tmin < t < tmax, or t == tmax when `tie_wins` (the traversal's tie rule:
+// of equally close hits the smallest triangle index wins, single_ray.hpp).
+// u, v follow Embree: p = (1-u-v) v0 + u v1 + v v2.
 inline bool intersect_triangle(const ShearedRay& r, const Triangle& tri, float tmin, float tmax,
-                               TriangleHit& hit) {
+                               TriangleHit& hit, bool tie_wins = false) {
     const Vec3 A = tri.v[0] - r.org, B = tri.v[1] - r.org, C = tri.v[2] - r.org;
     const float Az = component(A, r.kz), Bz = component(B, r.kz), Cz = component(C, r.kz);
     const float Ax = component(A, r.kx) - r.sx * Az, Ay = component(A, r.ky) - r.sy * Az;
@@ -80,9 +93,9 @@ inline bool intersect_triangle(const ShearedRay& r, const Triangle& tri, float t
     // parallel edges (a 3 x 0.009 triangle gave t off by 7e-4 in float);
     // differences of floats are exact in double, so this costs a few
     // multiplications per hit, not per test.
-    const double t = plane_distance(tri, r.org, r.dir);
+    const double t = ray_distance(tri, r);
     const float tf = float(t);
-    if (!(tf > tmin && tf < tmax)) return false;
+    if (!(tf > tmin && (tf < tmax || (tie_wins && tf == tmax)))) return false;
     const float inv = 1.0f / det;
     hit.t = tf;
     hit.u = V * inv;

@@ -48,11 +48,17 @@ def assert_agrees(scene_id: str, method: str, k: int | None, count: int) -> None
             f"{scene_id} {method} k={k}: {len(c['unexplained'])} of {c['rays']} {name} rays "
             f"disagree with Embree, e.g. rays {bad}: ours {h['prim'][bad]} t {h['t'][bad]}, "
             f"Embree {ref['prim'][bad]} t {ref['t'][bad]}")
+        leak = c["leaks"][:4]
+        assert len(c["leaks"]) == 0, (
+            f"{scene_id} {method} k={k}: {len(c['leaks'])} of {c['rays']} {name} rays leak "
+            f"through the surface, e.g. rays {leak}: ours {h['prim'][leak]} t {h['t'][leak]}, "
+            f"Embree {ref['prim'][leak]} t {ref['t'][leak]}")
         if name in WELL_CONDITIONED:
             explained = c["grazing"] + c["at_ends"] + c["degenerate"]
             assert explained <= max(3, c["rays"] // 500), (name, explained)
     # The hits-only path without culling (the check above counts, with culling).
     for name, c in rays.check(tree, cull=False, counters=False).items():
+        assert len(c["leaks"]) == 0, (scene_id, method, k, name, "hits-only leaks", c["leaks"][:4])
         assert len(c["unexplained"]) == 0, (
             f"{scene_id} {method} k={k} hits-only: {len(c['unexplained'])} of {c['rays']} "
             f"{name} rays disagree with Embree, e.g. rays {c['unexplained'][:4]}")

@@ -26,6 +26,7 @@
 #include "../tree.hpp"
 #include "../triangle.hpp"
 #include "tree_view.hpp"
+#include "walk_start.hpp"
 
 #ifndef BSPLAB_ISA_NS
 #error "packet.hpp is compiled per instruction set: include it from trace_kernels.cpp"
@@ -77,11 +78,16 @@ inline vint lane_vector(LaneMask m) {
     return (bit & int32_t(m)) != 0;
 }
 
-// The rays of one packet, in the tree's (scaled) space, as trace_one sees them.
+// The rays of one packet, in the tree's (scaled) space, as trace_one sees
+// them: `org` is where each lane tests triangles from (at t = test_t on its
+// ray), `walk` where it walks from (at t_e), as WalkStart says.
 struct PacketRays {
     vfloat org[3], dir[3], idir[3];
     vdouble org_d[3], dir_d[3];  // for the hits' distance in double
+    vdouble test_t, t_e;
     vfloat tmin;
+    // The walk origin, its error along each axis, the axis crossings' bounds.
+    vfloat walk[3], org_err[3], axis_err[3];
     vfloat cross_a, cross_b;  // a general crossing's error terms (trace_one)
     // The shear of intersect_triangle per lane: the origin's and a vertex's
     // coordinates along kx, ky, kz, and sx, sy.
@@ -117,13 +123,22 @@ inline ShearedVertex shear_vertex(const PacketRays& r, const Vec3& v) {
     return {pick(r.kx0, r.kx1, v), pick(r.ky0, r.ky1, v), pick(r.kz0, r.kz1, v)};
 }
 
-// The closest hits of a packet; prim -1 where none yet.
+// The closest hits of a packet; prim -1 where none yet. Ties as in
+// single_ray.hpp's Closest: the smallest triangle index wins.
 struct PacketHits {
     vfloat t, u, v;
     vint prim;
 };
 
-// plane_distance (triangle.hpp) for every lane: the same double operations
+// walk_reach for every lane: the walk parameter beyond which a lane's cell
+// cannot hold a hit as close as its closest one.
+inline vfloat lane_reach(const PacketRays& r, vfloat hit_t) {
+    vfloat reach;
+    for (int i = 0; i < kLanes; ++i) reach[i] = walk_reach(hit_t[i], r.t_e[i]);
+    return reach;
+}
+
+// ray_distance (triangle.hpp) for every lane: the same double operations
 // in the same order, the triangle's normal computed once.
 inline vfloat plane_distances(const PacketRays& r, const Triangle& tri) {
     double n[3];
@@ -132,17 +147,17 @@ inline vfloat plane_distances(const PacketRays& r, const Triangle& tri) {
                         n[1] * (double(tri.v[0].y) - r.org_d[1]) +
                         n[2] * (double(tri.v[0].z) - r.org_d[2]);
     const vdouble den = n[0] * r.dir_d[0] + n[1] * r.dir_d[1] + n[2] * r.dir_d[2];
-    return __builtin_convertvector(num / den, vfloat);
+    return __builtin_convertvector(r.test_t + num / den, vfloat);
 }
 
-// plane_distance for the lanes in `lanes` one by one (the other lanes: 0).
+// ray_distance for the lanes in `lanes` one by one (the other lanes: 0).
 inline vfloat plane_distances_of(const PacketRays& r, const Triangle& tri, LaneMask lanes) {
     vfloat t{};
     for (; lanes; lanes &= lanes - 1) {
         const int i = __builtin_ctz(lanes);
         const Vec3 o(r.org[0][i], r.org[1][i], r.org[2][i]);
         const Vec3 d(r.dir[0][i], r.dir[1][i], r.dir[2][i]);
-        t[i] = float(plane_distance(tri, o, d));
+        t[i] = float(r.test_t[i] + plane_distance(tri, o, d));
     }
     return t;
 }
@@ -179,12 +194,14 @@ inline void intersect_packet_triangle(const PacketRays& r, const Triangle& tri, 
     // packets that spread over small triangles, take the scalar division.
     const vfloat t = __builtin_popcount(inside) <= 2 ? plane_distances_of(r, tri, inside)
                                                      : plane_distances(r, tri);
-    const vint closer = lane_vector(inside) & (t > r.tmin) & (t < hits.t);
+    const vint prims = int32_t(prim) + vint{};
+    const vint closer = lane_vector(inside) & (t > r.tmin) &
+                        ((t < hits.t) | ((t == hits.t) & (prims < hits.prim)));
     const vfloat inv = 1.0f / det;
     hits.t = select(closer, t, hits.t);
     hits.u = select(closer, V * inv, hits.u);
     hits.v = select(closer, W * inv, hits.v);
-    hits.prim = closer ? int32_t(prim) + vint{} : hits.prim;
+    hits.prim = closer ? prims : hits.prim;
 }
 
 // The mailbox of a packet: which lanes already tested a triangle. A lane
@@ -244,23 +261,20 @@ struct PacketCrossing {
 inline PacketCrossing cross_node(const TreeView& tree, const PacketRays& r, Node node) {
     if (node.is_kd()) {
         const int axis = node.axis();
-        const vfloat t = (splat(node.split) - r.org[axis]) * r.idir[axis];
-        return {t, t, r.dir_negative[axis], node.kd_above()};
+        const vfloat t = (splat(node.split) - r.walk[axis]) * r.idir[axis];
+        return {t - r.axis_err[axis], t + r.axis_err[axis], r.dir_negative[axis],
+                node.kd_above()};
     }
     const Plane& p = tree.planes[node.first];
-    const vfloat no = p.nx * r.org[0] + p.ny * r.org[1] + p.nz * r.org[2];
+    const vfloat no = p.nx * r.walk[0] + p.ny * r.walk[1] + p.nz * r.walk[2];
     const vfloat nd = p.nx * r.dir[0] + p.ny * r.dir[1] + p.nz * r.dir[2];
     const vfloat inv_nd = 1.0f / nd;
     const vfloat tplane = (p.d - no) * inv_nd;
-    const bool axis_plane = (p.nx == 0.0f) + (p.ny == 0.0f) + (p.nz == 0.0f) == 2;
     const vfloat zero{};
-    vfloat err = zero;
-    if (!axis_plane) {
-        const vfloat parallel =
-            select(vabs(p.d - no) > r.cross_a, zero,
-                   splat(std::numeric_limits<float>::quiet_NaN()));
-        err = select(nd != zero, (r.cross_a + vabs(tplane) * r.cross_b) * vabs(inv_nd), parallel);
-    }
+    const vfloat parallel =
+        select(vabs(p.d - no) > r.cross_a, zero, splat(std::numeric_limits<float>::quiet_NaN()));
+    const vfloat err =
+        select(nd != zero, (r.cross_a + vabs(tplane) * r.cross_b) * vabs(inv_nd), parallel);
     return {tplane - err, tplane + err, lane_bits(vint(nd) < 0), node.general_above()};
 }
 
@@ -279,12 +293,14 @@ inline LaneMask clip_lanes_to_box(const Box& box, const PacketRays& r, vfloat& t
     const vfloat zero{};
     for (int k = 0; k < 3; ++k) {
         const vint flat = r.dir[k] == zero;
-        miss |= flat & ((r.org[k] < box.lo[k]) | (r.org[k] > box.hi[k]));
-        const vfloat tn = (box.lo[k] - r.org[k]) * r.idir[k];
-        const vfloat tf = (box.hi[k] - r.org[k]) * r.idir[k];
+        miss |= flat & ((r.walk[k] < box.lo[k]) | (r.walk[k] > box.hi[k]));
+        const vfloat tn = (box.lo[k] - r.walk[k]) * r.idir[k];
+        const vfloat tf = (box.hi[k] - r.walk[k]) * r.idir[k];
         const vint swap = tn > tf;
-        const vfloat near = select(swap, tf, tn);
-        const vfloat far = select(swap, tn, tf) * (1.0f + 4.0f * std::numeric_limits<float>::epsilon());
+        vfloat near = select(swap, tf, tn);
+        vfloat far = select(swap, tn, tf);
+        near -= r.org_err[k] + vabs(near) * kCrossRel;
+        far += r.org_err[k] + vabs(far) * kCrossRel;
         // std::max(t0, near) and std::min(t1, far), on the lanes not parallel.
         t0 = select(flat, t0, select(t0 < near, near, t0));
         t1 = select(flat, t1, select(far < t1, far, t1));
@@ -341,19 +357,31 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
     }
     for (int c = 0; c < 3; ++c) {
         r.idir[c] = 1.0f / r.dir[c];
-        r.org_d[c] = to_double(r.org[c]);
         r.dir_d[c] = to_double(r.dir[c]);
     }
-    // As in trace_one, summed in the same order.
-    constexpr float kCrossUlps = 1.0f / (1 << 20);
-    r.cross_a = kCrossUlps *
-                (tree.two_scene_scale + vabs(r.org[0]) + vabs(r.org[1]) + vabs(r.org[2]));
-    r.cross_b = kCrossUlps * (vabs(r.dir[0]) + vabs(r.dir[1]) + vabs(r.dir[2]));
+    // Each lane's walk, as trace_one's (a far lane's test origin moves to it).
+    for (int i = 0; i < kLanes; ++i) {
+        const float o[3] = {r.org[0][i], r.org[1][i], r.org[2][i]};
+        const float d[3] = {r.dir[0][i], r.dir[1][i], r.dir[2][i]};
+        const float idir[3] = {r.idir[0][i], r.idir[1][i], r.idir[2][i]};
+        const WalkStart w(tree.bounds, tree.two_scene_scale, o, d, idir);
+        for (int c = 0; c < 3; ++c) {
+            r.walk[c][i] = w.org[c], r.org_err[c][i] = w.org_err[c];
+            r.org[c][i] = w.test_org[c];
+        }
+        r.t_e[i] = w.t_e, r.test_t[i] = w.test_t;
+        r.cross_a[i] = w.cross_a, r.cross_b[i] = w.cross_b;
+        t0[i] = walk_lower(r.tmin[i], w.t_e), t1[i] = walk_upper(tmax[i], w.t_e);
+    }
+    for (int c = 0; c < 3; ++c) r.org_d[c] = to_double(r.org[c]);
     shear_lanes(r);
     for (int c = 0; c < 3; ++c) r.dir_negative[c] = lane_bits(vint(r.dir[c]) < 0);
-    t0 = r.tmin, t1 = tmax;
     const LaneMask rays_here = n == kLanes ? kAllLanes : (1u << n) - 1;
-    return clip_lanes_to_box(tree.bounds, r, t0, t1) & rays_here;
+    const LaneMask in_box = clip_lanes_to_box(tree.bounds, r, t0, t1) & rays_here;
+    // axis_crossing_errors, lane by lane.
+    const vfloat rel = kCrossRel * select(vabs(t0) > vabs(t1), vabs(t0), vabs(t1));
+    for (int c = 0; c < 3; ++c) r.axis_err[c] = r.org_err[c] + rel;
+    return in_box;
 }
 
 // The lanes of `group` that visit a node's entry child and its exit child.
@@ -381,7 +409,8 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
     uint32_t index = 0;
     PacketMailbox mailbox;
     const Node* nodes = tree.nodes;
-    active &= ~lane_bits(hits.t < t0);
+    vfloat reach = lane_reach(rays, hits.t);
+    active &= ~lane_bits(reach < t0);
     for (;;) {
         const Node node = nodes[index];
         if (active && !node.is_leaf()) {
@@ -409,7 +438,10 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
             active = enter;
             continue;
         }
-        if (active) intersect_packet_leaf(tree, node, index, rays, active, mailbox, hits);
+        if (active) {
+            intersect_packet_leaf(tree, node, index, rays, active, mailbox, hits);
+            reach = lane_reach(rays, hits.t);
+        }
         // Pop the next cell its lanes still need: a lane leaves a cell that
         // starts beyond its closest hit (trace_one's early exit, lane by
         // lane). Only a leaf changes the hits, and an entry child starts
@@ -418,7 +450,7 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
             if (top == 0) return;
             const PacketCell& c = stack[--top];
             index = c.node, t0 = c.t0, t1 = c.t1;
-            active = c.lanes & ~lane_bits(hits.t < t0);
+            active = c.lanes & ~lane_bits(reach < t0);
         } while (!active);
     }
 }

@@ -14,6 +14,7 @@
 #include "leaf_simd.hpp"
 #include "ray_coherence.hpp"
 #include "tree_view.hpp"
+#include "walk_start.hpp"
 
 #ifndef BSPLAB_ISA_NS
 #error "single_ray.hpp is compiled per instruction set: include it from trace_kernels.cpp"
@@ -38,15 +39,35 @@ struct Mailbox {
     }
 };
 
+// The closest hit so far. Of equally close hits (the same float t) the
+// smallest triangle index wins, on every path (counting or not, culling or
+// not, SIMD leaves, packets, any thread count), so which leaf finds a hit
+// first never changes the answer: two triangles sharing an edge the ray
+// meets exactly, or coinciding, give one answer everywhere.
 struct Closest {
     float t;
     int32_t prim = -1;
     float u = 0, v = 0;
+    // The walk parameter beyond which no cell can hold a hit as close
+    // (walk_reach): the early exit's and the cull box's end.
+    float reach;
+
+    bool beaten_by(float t_new, uint32_t p) const {
+        return t_new < t || (t_new == t && int32_t(p) < prim);
+    }
+    void take(float t_new, uint32_t p, float u_new, float v_new, double t_e) {
+        t = t_new;
+        prim = int32_t(p);
+        u = u_new;
+        v = v_new;
+        reach = walk_reach(t_new, t_e);
+    }
 };
 
-// Clips [t0, t1] to the box; false when the ray misses it.
-bool clip_to_box(const Box& b, const Vec3& o, const Vec3& inv, const Vec3& d, float& t0,
-                 float& t1) {
+// Clips the walk's range [s0, s1] to the box, every face's crossing widened
+// by its error bound (walk_start.hpp); false when the ray misses the box.
+bool clip_to_box(const Box& b, const float o[3], const float inv[3], const float d[3],
+                 const float org_err[3], float& s0, float& s1) {
     for (int k = 0; k < 3; ++k) {
         if (d[k] == 0.0f) {
             if (o[k] < b.lo[k] || o[k] > b.hi[k]) return false;
@@ -55,10 +76,11 @@ bool clip_to_box(const Box& b, const Vec3& o, const Vec3& inv, const Vec3& d, fl
         float tn = (b.lo[k] - o[k]) * inv[k];
         float tf = (b.hi[k] - o[k]) * inv[k];
         if (tn > tf) std::swap(tn, tf);
-        tf *= 1.0f + 4.0f * std::numeric_limits<float>::epsilon();  // never lose the far side
-        t0 = std::max(t0, tn);
-        t1 = std::min(t1, tf);
-        if (t0 > t1) return false;
+        tn -= org_err[k] + std::fabs(tn) * kCrossRel;
+        tf += org_err[k] + std::fabs(tf) * kCrossRel;
+        s0 = std::max(s0, tn);
+        s1 = std::min(s1, tf);
+        if (s0 > s1) return false;
     }
     return true;
 }
@@ -94,13 +116,14 @@ struct SegmentBox {
 // The counters are a compile-time policy of the traversal: CountEvery keeps
 // the heatmaps' and the statistics' counts of one ray, CountNothing is the
 // hits-only path, whose empty hooks leave no counting code behind. The hooks
-// say what the traversal does (a node visited over [t0, t1], a triangle
+// say what the traversal does (a node visited over the walk's [s0, s1],
+// t = t_e + s, walk_start.hpp; a triangle
 // culled, skipped by the mailbox, tested, hit or missed), so that a policy
 // can also record the whole walk: trace_path.cpp's PathRecord does, for the
 // ray inspector, with this very loop.
 struct CountEvery {
     uint32_t steps = 0, general_steps = 0, tests = 0, culled = 0;
-    void step(uint32_t /*node*/, float /*t0*/, float /*t1*/) { ++steps; }
+    void step(uint32_t /*node*/, float /*s0*/, float /*s1*/, double /*t_e*/) { ++steps; }
     void general_step() { ++general_steps; }
     void cull(uint32_t /*prim*/) { ++culled; }
     void seen(uint32_t /*prim*/) {}
@@ -116,7 +139,7 @@ struct CountEvery {
 };
 
 struct CountNothing {
-    void step(uint32_t, float, float) {}
+    void step(uint32_t, float, float, double) {}
     void general_step() {}
     void cull(uint32_t) {}
     void seen(uint32_t) {}
@@ -167,10 +190,10 @@ template <uint32_t L, LeafBoxes kBoxes>
 __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
     const TreeView& tree, Node node, const uint32_t* list, uint32_t n_refs,
     const ShearedRay& sray, const float org[3], const float dir[3], float t0, float t1,
-    float tmin, Closest& hit) {
+    float tmin, double t_e, Closest& hit) {
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
-        seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
     for (uint32_t first = 0; first < n_refs; first += L) {
         const EdgeBlock<L> e =
             edge_test_block<L>(sray, tree.tris, list + first, std::min(L, n_refs - first));
@@ -181,15 +204,12 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
                 const uint32_t box = kBoxes == LeafBoxes::Triangle ? p : node.first + first + lane;
                 if (seg.misses(tree.boxes[box])) continue;
             }
-            const float t = float(plane_distance(tree.tris[p], sray.org, sray.dir));
-            if (!(t > tmin && t < hit.t)) continue;
+            const float t = float(ray_distance(tree.tris[p], sray));
+            if (!(t > tmin && hit.beaten_by(t, p))) continue;
             const float inv = 1.0f / (e.U[lane] + e.V[lane] + e.W[lane]);
-            hit.t = t;
-            hit.prim = int32_t(p);
-            hit.u = e.V[lane] * inv;
-            hit.v = e.W[lane] * inv;
+            hit.take(t, p, e.V[lane] * inv, e.W[lane] * inv, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
-                seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
         }
     }
 }
@@ -201,7 +221,7 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
 template <LeafBoxes kBoxes, bool kSimdLeaves, class Counters>
 inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
                            const float org[3], const float dir[3], float t0, float t1, float tmin,
-                           Mailbox& mailbox, Closest& hit, Counters& count) {
+                           double t_e, Mailbox& mailbox, Closest& hit, Counters& count) {
     const uint32_t n_refs = node.count();
     const uint32_t* list =
         n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
@@ -209,13 +229,13 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         static_assert(std::is_same_v<Counters, CountNothing>, "the counting path tests one by one");
         if (n_refs >= kSimdLeafMin) {
             intersect_leaf_hits_only<kWideLanes, kBoxes>(tree, node, list, n_refs, sray, org,
-                                                         dir, t0, t1, tmin, hit);
+                                                         dir, t0, t1, tmin, t_e, hit);
             return;
         }
     }
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
-        seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
     for (uint32_t i = 0; i < n_refs; ++i) {
         const uint32_t p = list[i];
         if constexpr (kBoxes != LeafBoxes::None) {
@@ -233,32 +253,29 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         }
         count.test(p);
         TriangleHit th;
-        if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th)) {
+        if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim)) {
             count.hit(th.t);
-            hit.t = th.t;
-            hit.prim = int32_t(p);
-            hit.u = th.u;
-            hit.v = th.v;
+            hit.take(th.t, p, th.u, th.v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
-                seg.set(org, dir, t0, std::min(t1, hit.t), tree.cull_pad);
+                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
         } else {
             count.miss();
         }
     }
 }
 
-// Pops the next cell of the stack that may still hold a hit closer than
-// `hit_t`; false when none is left. A cell that starts beyond the closest hit
-// cannot improve it. Cells deeper in the stack usually lie beyond it too, but
+// Pops the next cell of the stack that may still hold a hit as close as the
+// closest hit (whose walk parameter is at most `reach`); false when none is
+// left. A cell that starts beyond it cannot improve it. Cells deeper in the stack usually lie beyond it too, but
 // not always (a ray in a plane visits both sides over its whole range), so
 // the search goes on rather than stopping at the first such cell.
 // The check is needed here only: while the ray descends, neither its entry
 // distance t0 nor the closest hit changes.
-inline bool pop_cell(const StackEntry* stack, int& top, float hit_t, uint32_t& index, float& t0,
+inline bool pop_cell(const StackEntry* stack, int& top, float reach, uint32_t& index, float& t0,
                      float& t1) {
     while (top > 0) {
         const StackEntry& e = stack[--top];
-        if (!(hit_t < e.tmin)) {
+        if (!(reach < e.tmin)) {
             index = e.node;
             t0 = e.tmin;
             t1 = e.tmax;
@@ -278,29 +295,32 @@ template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove
 void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                Closest& hit, Counters& count) {
     hit.t = tmax;
-    const Vec3 inv(1.0f / d.x, 1.0f / d.y, 1.0f / d.z);
-    float t0 = tmin, t1 = tmax;
-    if (!clip_to_box(tree.bounds, o, inv, d, t0, t1)) return;
-
     // Plain arrays: the axis is a run-time index in the hot loop.
-    const float org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
-    const float idir[3] = {inv.x, inv.y, inv.z};
-    const ShearedRay sray(o, d);
+    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
+    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
+    // The walk runs from the ray's entry into the scene box (walk_start.hpp):
+    // its t0, t1 and crossings are s = t - t_e; the hits keep the ray's t.
+    const WalkStart walk(tree.bounds, tree.two_scene_scale, ray_org, dir, idir);
+    const double t_e = walk.t_e;
+    const float* org = walk.org;
+    hit.reach = walk_reach(tmax, t_e);
+    float t0 = walk_lower(tmin, t_e), t1 = walk_upper(tmax, t_e);
+    if (!clip_to_box(tree.bounds, org, idir, dir, walk.org_err, t0, t1)) return;
+    float axis_err[3];
+    axis_crossing_errors(walk, t0, t1, axis_err);
+    // A far ray's triangle test starts there too (ShearedRay::t_offset,
+    // kFarTestSizes): the same watertight test, with the precision of a
+    // point inside the box.
+    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
+                          walk.test_t);
     // Locals, so that the hot loop keeps them in registers.
     const Node* nodes = tree.nodes;
     const Plane* planes = tree.planes;
-    // A general plane's crossing is off by a few roundings of the terms it
-    // is computed from: the plane offset (at most a few scene coordinates),
-    // n.o (at most |o|_1, n being unit) and t n.d (at most |t| |d|_1).
-    // The traversal widens it to [t - err, t + err] with
-    //   err = (cross_a + |t| cross_b) / |n.d|,
-    // so a ray from far away never skips a cell it passes through.
-    // kd nodes need no widening: their crossings are computed exactly like
-    // the scene box's and each other's, so their order is always consistent.
-    constexpr float kCrossUlps = 1.0f / (1 << 20);  // 16 roundings of 2^-24
-    const float cross_a =
-        kCrossUlps * (tree.two_scene_scale + std::fabs(o.x) + std::fabs(o.y) + std::fabs(o.z));
-    const float cross_b = kCrossUlps * (std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z));
+    // A general plane's crossing is widened to [t - err, t + err] with
+    //   err = (cross_a + |t| cross_b) / |n.d|
+    // (walk_start.hpp says what the terms bound), an axis crossing - a kd
+    // node's - by axis_err[axis].
+    const float cross_a = walk.cross_a, cross_b = walk.cross_b;
     Mailbox mailbox;
     StackEntry stack[72];
     int top = 0;
@@ -308,7 +328,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
 
     for (;;) {
         const Node node = nodes[index];
-        count.step(index, t0, t1);
+        count.step(index, t0, t1, t_e);
         if (kGeneral ? !node.is_leaf() : node.is_kd()) {
             // Both kinds reduce to: where the ray crosses the plane, and
             // which child it enters from. Before the crossing the ray is on
@@ -317,12 +337,13 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
             // than by the origin's side keeps every case consistent,
             // including rays parallel to the plane (t = +-inf) and rays lying
             // in it (t = NaN: both sides).
-            float tplane, err = 0.0f;
+            float tplane, err;
             bool down;  // the ray moves towards the child below the plane
             uint32_t above_child;
             if (!kGeneral || node.is_kd()) {
                 const int axis = node.axis();
                 tplane = (node.split - org[axis]) * idir[axis];
+                err = axis_err[axis];
                 down = std::signbit(dir[axis]);
                 above_child = node.kd_above();
                 // Incoherent rays: fetch the child above the plane now,
@@ -340,22 +361,11 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
                 const Plane& p = planes[node.first];
                 const float no = p.nx * org[0] + p.ny * org[1] + p.nz * org[2];
                 const float nd = p.nx * dir[0] + p.ny * dir[1] + p.nz * dir[2];
-                // A reciprocal, as for kd nodes and the scene box: a general
-                // node whose plane is an axis plane then gives bit-identical
-                // crossings to the box clip and to kd nodes at the same
-                // position. With a division, a wall lying in the scene box's
-                // face could be crossed an ulp before the box is entered, and
-                // its flat cell skipped.
                 const float inv_nd = 1.0f / nd;
                 tplane = (p.d - no) * inv_nd;
-                // An axis plane's crossing is computed exactly like a kd
-                // node's (the zero terms of n.o and n.dir are exact), so it
-                // needs no widening either. Parallel to a general plane
-                // (t = +-inf): on the origin's side for good, unless the
-                // origin lies within the error of the plane.
-                const bool axis_plane = (p.nx == 0.0f) + (p.ny == 0.0f) + (p.nz == 0.0f) == 2;
-                err = axis_plane ? 0.0f
-                      : nd != 0.0f ? (cross_a + std::fabs(tplane) * cross_b) * std::fabs(inv_nd)
+                // Parallel to the plane (t = +-inf): on the origin's side for
+                // good, unless the origin lies within the error of the plane.
+                err = nd != 0.0f ? (cross_a + std::fabs(tplane) * cross_b) * std::fabs(inv_nd)
                       : std::fabs(p.d - no) > cross_a ? 0.0f
                                                       : std::numeric_limits<float>::quiet_NaN();
                 down = std::signbit(nd);
@@ -363,7 +373,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
             }
             const uint32_t entry = down ? above_child : index + 1;
             const uint32_t exit = down ? index + 1 : above_child;
-            // The exact crossing lies in [t_lo, t_hi]; for kd nodes t_lo = t_hi.
+            // The exact crossing lies in [t_lo, t_hi].
             // Three cases (branches, not conditional moves: measured
             // faster on coherent rays, whose branches predict well, and no
             // slower on random rays, where they mispredict: selects put the
@@ -399,13 +409,13 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
         }
         // Empty leaves (most leaves of a kd tree) have nothing to test.
         if (node.count() != 0)
-            intersect_leaf<kBoxes, kSimdLeaves>(tree, node, index, sray, org, dir, t0, t1, tmin, mailbox, hit,
-                                   count);
+            intersect_leaf<kBoxes, kSimdLeaves>(tree, node, index, sray, org, dir, t0, t1, tmin,
+                                                t_e, mailbox, hit, count);
         // Early exit: pop_cell skips every cell that starts beyond the
         // closest hit. (Not `hit.t <= t1` here: with widened crossings, and
         // for rays in a plane, a cell still on the stack may start before
         // this one ends.)
-        if (!pop_cell(stack, top, hit.t, index, t0, t1)) break;
+        if (!pop_cell(stack, top, hit.reach, index, t0, t1)) break;
     }
 }
 

@@ -1,0 +1,103 @@
+"""Which triangle edges a mesh shares: the same two vertices, bit for bit, in
+two or more triangles. A ray through a shared edge must hit one of its
+triangles (the triangle test is watertight there); through an open edge a
+single-precision test may rightly miss. The edge family aims at shared edges
+(ray_families.edges_in_split_planes) and the leak check tells the two apart
+(oracle.leaks)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def edge_keys(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 6) uint32 keys of the edges a[i]-b[i] (float32 points): the raw
+    bits of both end points, the smaller first, so that an edge has one key
+    whichever way it runs."""
+    ka = np.ascontiguousarray(a, np.float32).view(np.uint32).reshape(-1, 3)
+    kb = np.ascontiguousarray(b, np.float32).view(np.uint32).reshape(-1, 3)
+    diff = ka != kb
+    first = np.argmax(diff, axis=1)
+    r = np.arange(len(ka))
+    a_first = (diff.any(axis=1) & (ka[r, first] < kb[r, first]))[:, None]
+    return np.concatenate([np.where(a_first, ka, kb), np.where(a_first, kb, ka)], axis=1)
+
+
+def triangle_edges(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The end points of every triangle's three edges, (3N, 3) each: edge j of
+    triangle i (row 3 i + j) runs from vertex j to vertex j + 1."""
+    t = np.asarray(tris, np.float32)
+    return t.reshape(-1, 3), np.roll(t, -1, axis=1).reshape(-1, 3)
+
+
+def edge_groups(tris: np.ndarray) -> np.ndarray:
+    """(3N,) int: one number per distinct edge, for every triangle's edge
+    (row 3 i + j as in triangle_edges); equal numbers, the same edge."""
+    a, b = triangle_edges(tris)
+    return np.unique(edge_keys(a, b), axis=0, return_inverse=True)[1].ravel()
+
+
+def crosses_surface(tris: np.ndarray, groups: np.ndarray, prim: int, edge: int,
+                    direction: np.ndarray) -> bool:
+    """Whether a ray along `direction` through edge `edge` of triangle
+    `prim` passes from one side of the surface to the other there (one of
+    the edge's other triangles faces the ray the way `prim` does, windings
+    made consistent), rather than touching a silhouette edge - a convex
+    corner seen from outside, where a single-precision test may rightly
+    miss both triangles."""
+    a, b = triangle_edges(tris)
+    row = 3 * prim + edge
+    d = np.asarray(direction, np.float64)
+
+    def facing(r: int) -> float:
+        t = tris[r // 3].astype(np.float64)
+        return float(np.dot(np.cross(t[1] - t[0], t[2] - t[0]), d))
+
+    mine = facing(row)
+    for other in np.flatnonzero(groups == groups[row]):
+        if other == row:
+            continue
+        # The same edge run the same way: the other triangle's winding is
+        # the opposite of a consistent surface's.
+        flip = -1.0 if (a[other] == a[row]).all() else 1.0
+        if flip * facing(other) * mine > 0:
+            return True
+    return False
+
+
+def touching_vertex(tris: np.ndarray, shared: np.ndarray, prim: int, vertex: int,
+                    direction: np.ndarray) -> bool:
+    """Whether a ray along `direction` through vertex `vertex` of triangle
+    `prim` may rightly miss every triangle there: the vertex lies on an open
+    edge (the surface's border: no closed fan around it), or some triangle
+    around it faces the ray the other way (a corner of a box seen from
+    outside, which the ray only touches). `shared` is shared_mask(tris)."""
+    t = np.asarray(tris, np.float32)
+    v = t[prim, vertex]
+    at = (t == v).all(axis=2)  # (N, 3): triangle i has the vertex as its corner j
+    rows, corner = np.nonzero(at)
+    # The two edges of a triangle at its corner j: j -> j + 1 and j - 1 -> j.
+    if not (shared[rows, corner] & shared[rows, (corner + 2) % 3]).all():
+        return True
+    around = t[rows].astype(np.float64)
+    n = np.cross(around[:, 1] - around[:, 0], around[:, 2] - around[:, 0])
+    facing = n @ np.asarray(direction, np.float64)
+    return bool((facing > 0).any() and (facing < 0).any())
+
+
+def shared_mask(tris: np.ndarray) -> np.ndarray:
+    """(N, 3) bool: edge j of triangle i (vertex j to j + 1) is shared."""
+    a, b = triangle_edges(tris)
+    _, inverse, counts = np.unique(edge_keys(a, b), axis=0, return_inverse=True,
+                                   return_counts=True)
+    return (counts[inverse.ravel()] >= 2).reshape(-1, 3)
+
+
+def shared_edges(tris: np.ndarray) -> np.ndarray:
+    """(E, 2, 3) float32: every shared edge once."""
+    a, b = triangle_edges(tris)
+    keys = edge_keys(a, b)
+    shared = shared_mask(tris).ravel()
+    _, pick = np.unique(keys[shared], axis=0, return_index=True)
+    rows = np.flatnonzero(shared)[pick]
+    return np.stack([a[rows], b[rows]], axis=1)
