@@ -41,7 +41,12 @@ def test_axes_as_general_nodes_have_the_counters_of_axes_as_kd_nodes(room_record
         # The experiment's premise: same planes, only the encoding differs.
         assert general["kd_nodes"] == 0 and general["general_nodes"] > 0, name
         assert kd_nodes["general_nodes"] == 0, name
-        assert general["steps"] == kd_nodes["steps"] and general["tests"] == kd_nodes["tests"]
+        # Equal up to the crossing rule's error bounds (issue 26): a general
+        # plane's crossing is computed from a dot product and widened by a
+        # larger bound than an axis crossing, so a ray now and then visits one
+        # more child in the general encoding (0.09 % more steps on room).
+        assert general["steps"] == pytest.approx(kd_nodes["steps"], rel=0.005), name
+        assert general["tests"] == pytest.approx(kd_nodes["tests"], rel=0.005), name
         # Every interior step is general in the one, none in the other (steps
         # also count the leaves visited).
         assert 0 < general["general_steps"] < general["steps"]
