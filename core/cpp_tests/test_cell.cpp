@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "cell.hpp"
+#include "build/cell.hpp"
 
 namespace bsp {
 namespace {

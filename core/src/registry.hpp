@@ -12,7 +12,7 @@
 #include <variant>
 #include <vector>
 
-#include "strategies/strategy.hpp"
+#include "build/strategies/strategy.hpp"
 #include "tree.hpp"
 
 namespace bsp {
