@@ -1,15 +1,14 @@
 """The BSP family: the method table, options, ^Kd nodes, per-level
-statistics, seeds, and the cells' surface areas."""
+statistics and seeds. (The cells' surface areas are C++ unit tests:
+cpp_tests/test_cell.cpp.)"""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest
 
 import bsplab
-from bsplab import _core, scenes
+from bsplab import scenes
 
 METHODS = bsplab.methods()
 FAMILY = [m for m in METHODS if m != "kd"]
@@ -131,55 +130,3 @@ def test_cancel_stops_a_bsp_build():
     p.cancel()
     with pytest.raises(bsplab.Cancelled):
         bsplab.build(scenes.generate("spheres"), method="bsp_cn+kd", progress=p)
-
-
-def box_area_below(lo, hi, axis, t):
-    d = np.array(hi, float) - np.array(lo, float)
-    d[axis] = t - lo[axis]
-    return 2 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
-
-
-def test_cell_areas_of_a_box_are_exact():
-    lo, hi = (-1.0, 0.0, 2.0), (3.0, 0.5, 4.0)
-    for axis in range(3):
-        u = tuple(float(i == axis) for i in range(3))
-        ts = np.linspace(lo[axis], hi[axis], 9)[1:-1]
-        total, rows = _core.cell_areas(lo, hi, [], u, list(ts))
-        assert total == pytest.approx(box_area_below(lo, hi, axis, hi[axis]))
-        for t, (b, a, tb, ta) in zip(ts, rows):
-            assert b == pytest.approx(box_area_below(lo, hi, axis, t), rel=1e-12)
-            # The part above is the box [t, hi] along the axis.
-            mirrored = box_area_below(lo, hi, axis, lo[axis] + hi[axis] - t)
-            assert a == pytest.approx(mirrored, rel=1e-12)
-            assert (tb, ta) == pytest.approx((b, a), rel=1e-9)
-
-
-def test_tabulated_areas_equal_direct_ones_on_cut_cells():
-    rng = np.random.default_rng(3)
-    for _ in range(20):
-        cuts = []
-        for _ in range(4):
-            n = rng.normal(size=3)
-            n /= np.linalg.norm(n)
-            cuts.append((*n, float(n @ rng.uniform(0.3, 0.7, 3))))
-        u = rng.normal(size=3)
-        u /= np.linalg.norm(u)
-        ts = list(rng.uniform(-0.5, 2.0, 25))
-        total, rows = _core.cell_areas((0, 0, 0), (1, 1, 1), cuts, tuple(u), ts)
-        assert 0 < total < 6
-        for b, a, tb, ta in rows:
-            assert tb == pytest.approx(b, rel=1e-7, abs=1e-12)
-            assert ta == pytest.approx(a, rel=1e-7, abs=1e-12)
-            # Both parts' surfaces cover the cell's: SA(L) + SA(R) >= SA(P).
-            assert b + a >= total * (1 - 1e-9) or b == 0 or a == 0
-
-
-def test_cut_cell_area_matches_an_independent_formula():
-    # The unit cube cut by x + y + z = 1.5 through its centre: the cap is a
-    # regular hexagon of side sqrt(2)/2, area (3 sqrt 3 / 2) s^2; each half
-    # keeps half of the cube's surface.
-    s = math.sqrt(2) / 2
-    hexagon = 1.5 * math.sqrt(3) * s * s
-    n = 1 / math.sqrt(3)
-    total, _ = _core.cell_areas((0, 0, 0), (1, 1, 1), [(n, n, n, 1.5 * n)], (1, 0, 0), [])
-    assert total == pytest.approx(3 + hexagon, rel=1e-12)

@@ -15,13 +15,27 @@ def test_methods_name_known_strategies_builders_and_options():
     assert set(STRATEGIES) >= {"axes", "fixed", "random", "normals", "clustered", "ize"}
     for m in METHODS.values():
         assert m.strategy in STRATEGIES, m.name
-        assert m.builder in ("kd", "bsp"), m.name
         for name in m.params:
             assert name in OPTIONS, (m.name, name)
         for name in m.defaults:
             assert name in m.extra, (m.name, name)
     # Every strategy is used by some method: none is registered but unreachable.
     assert {m.strategy for m in METHODS.values()} == set(STRATEGIES)
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_all_general_nodes_says_what_the_trees_hold(method):
+    # The registry's statement the measured costs rely on (bsplab.costs):
+    # a method whose trees hold general nodes only, or one whose trees may
+    # hold kd nodes. (The room: axis-aligned walls, where every method
+    # splits along the axes too.)
+    m = METHODS[method]
+    s = bsplab.build(scenes.generate("room"), method).stats
+    assert s["interior_nodes"] > 0
+    if m.all_general_nodes:
+        assert s["kd_nodes"] == 0 and s["general_nodes"] == s["interior_nodes"]
+    else:
+        assert s["kd_nodes"] > 0
 
 
 def test_groups_split_the_options():
@@ -131,10 +145,19 @@ def test_options_for_refuses_bad_names_and_types(values, words):
         _core.options_for("bsp_wn", values)
 
 
-def test_unknown_method_and_strategy_are_named():
+def test_unknown_method_is_named():
+    # (An unknown strategy cannot come from Python: the registry sets it from
+    # the method; cpp_tests/test_registry.cpp checks make_strategy's message.)
     with pytest.raises(ValueError, match="unknown method octree; known: kd, rbsp"):
         _core.options_for("octree", {})
-    o = _core.options_for("bsp_wn", {})
-    o.strategy = "x_only"
-    with pytest.raises(ValueError, match="unknown direction strategy x_only; known: axes, fixed"):
-        _core.build(scenes.generate("cube"), "bsp", o, None)
+    with pytest.raises(ValueError, match="unknown method octree; known: kd, rbsp"):
+        _core.build(scenes.generate("cube"), "octree", {}, None)
+
+
+def test_build_sets_options_by_name_in_one_call():
+    tris = scenes.generate("spheres")
+    tree = _core.build(tris, "bsp_wn+kd", {"k": 4, "seed": 3, "leaf_size": 2}, None)
+    same = bsplab.build(tris, "bsp_wn+kd", k=4, seed=3, leaf_size=2)
+    assert tree.node_bytes() == same._tree.node_bytes()
+    with pytest.raises(ValueError, match="option k takes a whole number"):
+        _core.build(tris, "bsp_wn", {"k": 6.5}, None)

@@ -14,8 +14,8 @@
 #include "build/cell.hpp"
 #include "build/cost_model.hpp"
 #include "build/strategies/directions.hpp"
+#include "build/strategies/strategy.hpp"
 #include "parallel.hpp"
-#include "registry.hpp"
 
 namespace bsp {
 namespace {
@@ -50,17 +50,22 @@ struct SweepResult {
     Candidate fallback;  // ^Kd: general splits at its fallback_step()
 };
 
+// Nodes with more triangles than this sweep their directions in parallel.
+constexpr size_t kParallelDirections = 8192;
+
+// The depth of the stack walking BSP_IZE's per-node BVH: a subtree that
+// would overflow it is counted reference by reference instead.
+constexpr int kRefBvhStack = 128;
+
 // BSP_IZE's per-node BVH over the references: a box, a centre, an order slot
 // and about half a BVH node per reference.
 constexpr uint64_t kIzeBytesPerRef = 2 * sizeof(Box) + sizeof(Vec3) + sizeof(uint32_t);
 
-class BspBuilder {
+class BspBuilder : BuilderBase {
 public:
     BspBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
                int threads, MemoryBudget& memory)
-        : tris_(tris), opt_(opt), cost_(opt), progress_(progress), threads_(threads),
-          memory_(memory) {
-        spawn_depth_ = spawn_depth(threads);
+        : BuilderBase(tris, opt, progress, threads, memory) {
         // A general plane's crossing is computed as (d - n.o) / (n.dir) in
         // float, off by a few ulps of the coordinates; two planes with almost
         // equal normals can even swap order along a ray. References are
@@ -75,8 +80,7 @@ public:
     // `credit`: the memory budget of the build task (thread) running this node.
     std::unique_ptr<BuildNode> build(NodeRefs refs, Cell cell, int depth, double budget,
                                      uint64_t id, TaskCredit& credit) {
-        if (progress_) progress_->check();
-        memory_.check();
+        check_stop();
         const size_t n = refs.refs.size();
         const double area = cell.area();
         if (int(n) <= opt_.leaf_size || depth >= opt_.max_depth || !(area > 0))
@@ -102,7 +106,7 @@ public:
         auto sweep_range = [&](size_t b, size_t e) {
             for (size_t j = b; j < e; ++j) per_dir[j] = sweep(refs, cell, area, dirs[j]);
         };
-        if (threads_ > 1 && n > 8192) parallel_for(dirs.size(), 1, threads_, sweep_range);
+        if (threads_ > 1 && n > kParallelDirections) parallel_for(dirs.size(), 1, threads_, sweep_range);
         else sweep_range(0, dirs.size());
         for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
         if (strategy_->tries_triangle_planes()) merge(total, ize_planes(refs, cell, area, rng));
@@ -158,7 +162,7 @@ public:
         double lbudget, rbudget;
         split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
         const uint64_t lid = Rng::mix(id, 1), rid = Rng::mix(id, 2);
-        if (depth < spawn_depth_ && n > 4096) {
+        if (spawns(depth, n)) {
             auto right_task = std::async(std::launch::async, [&, r = std::move(right),
                                                              c = std::move(rcell)]() mutable {
                 TaskCredit task_credit(memory_);
@@ -178,13 +182,6 @@ public:
     }
 
 private:
-    const std::vector<Triangle>& tris_;
-    const BuildOptions& opt_;
-    const CostModel cost_;
-    Progress* progress_;
-    int threads_;
-    int spawn_depth_;
-    MemoryBudget& memory_;
     std::unique_ptr<DirectionStrategy> strategy_;
     float eps_ = 0;  // the fattening of extents along non-axis directions
 
@@ -499,7 +496,7 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         // Box projections are conservative by a relative margin, so a whole
         // subtree is counted at once only when every reference in it is
         // certainly on that side in the float projection split_refs() uses.
-        uint32_t stack[128];
+        uint32_t stack[kRefBvhStack];
         int top = 0;
         stack[top++] = 0;
         while (top) {
@@ -517,7 +514,7 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
                 pc.above += node.end - node.begin;
                 continue;
             }
-            if (node.child && top + 2 <= 128) {
+            if (node.child && top + 2 <= kRefBvhStack) {
                 stack[top++] = node.child;
                 stack[top++] = node.child + 1;
                 continue;

@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "build/cost_model.hpp"
 #include "build/memory.hpp"
 #include "progress.hpp"
 #include "tree.hpp"
@@ -68,6 +69,42 @@ inline int spawn_depth(int threads) {
     while ((1 << depth) < threads) ++depth;
     return threads > 1 ? depth + 2 : 0;
 }
+
+// ...and only a node of more than this many triangles: below it, starting a
+// thread costs more than building the subtree.
+constexpr size_t kMinSpawnTriangles = 4096;
+
+// What the node recursion of every builder reads - the triangles, the
+// options and their cost model, progress, threads, the memory budget - and
+// the two decisions they share: stop (cancelled, over budget) and spawn.
+class BuilderBase {
+public:
+    BuilderBase(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
+                int threads, MemoryBudget& memory)
+        : tris_(tris), opt_(opt), cost_(opt), progress_(progress), threads_(threads),
+          spawn_depth_(spawn_depth(threads)), memory_(memory) {}
+
+protected:
+    // Throws Cancelled or MemoryLimitExceeded when the build must stop.
+    void check_stop() const {
+        if (progress_) progress_->check();
+        memory_.check();
+    }
+
+    // True when a node at `depth` of `triangles` builds its right subtree on
+    // a task of its own.
+    bool spawns(int depth, size_t triangles) const {
+        return depth < spawn_depth_ && triangles > kMinSpawnTriangles;
+    }
+
+    const std::vector<Triangle>& tris_;
+    const BuildOptions& opt_;
+    const CostModel cost_;
+    Progress* progress_;
+    int threads_;
+    int spawn_depth_;
+    MemoryBudget& memory_;
+};
 
 // Each child may use the parent's reference budget in proportion to its
 // share, which bounds the tree's total references deterministically.

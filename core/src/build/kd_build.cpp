@@ -89,14 +89,9 @@ struct TaskScratch {
     }
 };
 
-class KdBuilder {
+class KdBuilder : BuilderBase {
 public:
-    KdBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
-              int threads, MemoryBudget& memory)
-        : tris_(tris), opt_(opt), cost_(opt), progress_(progress), threads_(threads),
-          memory_(memory) {
-        spawn_depth_ = spawn_depth(threads);
-    }
+    using BuilderBase::BuilderBase;
 
     // A build task: the root, or a subtree on a thread of its own. Its
     // lists are copied into the task's own stack first; then `copied` runs
@@ -124,14 +119,6 @@ public:
     }
 
 private:
-    const std::vector<Triangle>& tris_;
-    const BuildOptions& opt_;
-    const CostModel cost_;
-    Progress* progress_;
-    int threads_;
-    int spawn_depth_;
-    MemoryBudget& memory_;
-
     // The cheapest SAH split along axis k, sweeping its sorted events once.
     Split find_split_axis(const NodeEvents& ev, const Box& box, int k) const {
         Split best;
@@ -376,8 +363,7 @@ private:
 
     std::unique_ptr<BuildNode> build_node(NodeEvents ev, const Box& box, int depth, double budget,
                                           TaskScratch& scratch, TaskCredit& credit) {
-        if (progress_) progress_->check();
-        memory_.check();
+        check_stop();
         const float leaf_cost = cost_.leaf(ev.count);
         if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth)
             return make_leaf(ev, box, depth, credit);
@@ -411,7 +397,7 @@ private:
         // among equal events (their order is the sort's): store one of them.
         node->split = s.pos == 0.0f ? 0.0f : s.pos;
         node->area = box.area();
-        if (depth < spawn_depth_ && ev.count > 4096) {
+        if (spawns(depth, ev.count)) {
             // The right lists stay put until the task has copied them: the
             // left subtree only writes above them.
             auto right_task = std::async(std::launch::async, [&] {

@@ -87,8 +87,13 @@ public:
         size_t block = 0, top = 0;
     };
 
+    // A new block holds at least this many events, so that a small task's
+    // lists share one block rather than each asking malloc for its own.
+    static constexpr size_t kMinBlockEvents = 4096;
+
     // `block_events`: the size of a new block, unless a list needs more.
-    explicit EventStack(size_t block_events) : block_events_(std::max<size_t>(block_events, 4096)) {}
+    explicit EventStack(size_t block_events)
+        : block_events_(std::max(block_events, kMinBlockEvents)) {}
 
     Mark mark() const { return {current_, top_}; }
     void release(Mark m) {

@@ -1,11 +1,12 @@
 // The interface of a direction strategy: which plane normals the BSP_SWEEP
 // builder sweeps at a node. One strategy per file in this folder; each is
-// listed once in registry.cpp (kStrategies), which is how the builder finds
-// it by the name in BuildOptions::strategy.
+// listed once in strategy_table.cpp (kStrategies), which is how the builder
+// finds it by the name in BuildOptions::strategy.
 #pragma once
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "build/strategies/directions.hpp"
@@ -39,5 +40,10 @@ public:
 
 // Made once per tree, from the tree's options (e.g. RBSP's fixed set).
 using StrategyFactory = std::unique_ptr<DirectionStrategy> (*)(const BuildOptions&);
+
+// The names of the direction strategies (strategy_table.cpp), and the one a
+// tree's options name (std::invalid_argument naming the known ones).
+std::vector<std::string> strategy_names();
+std::unique_ptr<DirectionStrategy> make_strategy(const BuildOptions& options);
 
 }  // namespace bsp
