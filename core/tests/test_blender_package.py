@@ -11,7 +11,7 @@ import pytest
 
 import bsplab
 from bsplab import blender, io
-from bsplab.blender import camera, extract
+from bsplab.blender import extract, scene_camera
 
 PACKAGE = Path(bsplab.__file__).resolve().parent
 
@@ -21,7 +21,7 @@ def test_the_export_script_ships_inside_the_installed_package():
     assert blender.EXPORT_SCRIPT.resolve().parent == PACKAGE / "blender"
 
 
-@pytest.mark.parametrize("module", [camera, extract])
+@pytest.mark.parametrize("module", [scene_camera, extract])
 def test_readers_run_as_plain_modules(module):
     """export_scene.py imports them from their folder in a Blender whose Python
     may not load the compiled core: they import only the stdlib and numpy."""
@@ -54,7 +54,7 @@ def test_load_blend_runs_the_packaged_script(tmp_path, monkeypatch):
 
 
 def test_camera_spec_makes_a_core_camera():
-    spec = camera.CameraSpec(matrix_world=np.eye(4), lens=35.0, sensor_width=36.0,
+    spec = scene_camera.CameraSpec(matrix_world=np.eye(4), lens=35.0, sensor_width=36.0,
                              sensor_height=24.0, sensor_fit="AUTO", shift_x=0.1, shift_y=0.0,
                              pixel_aspect=1.0, clip_start=0.1, clip_end=100.0, width=64,
                              height=48, name="Cam")

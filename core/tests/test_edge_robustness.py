@@ -3,7 +3,7 @@ culling never changes an answer, every path gives the same one, and rays in
 planes or from far away cost about what camera rays cost.
 
 The traversal's conservative crossing rule and its start at the scene box
-(core/src/kernels/walk_start.hpp) are what these check; the leak check is
+(core/src/trace/kernels/walk_start.hpp) are what these check; the leak check is
 oracle.leaks (a miss or a farther hit where Embree hits, a shared edge being
 no excuse)."""
 

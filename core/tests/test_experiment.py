@@ -28,23 +28,23 @@ TINY = {
     "height": 16,
     "executor": "inline",
 }
-# kd: 1 cell; bsp_wn+kd: 2 K x 2 seeds; bsp_ize+kd: no K, 2 seeds.
-TINY_CELLS = 1 + 4 + 2
+# kd: 1 trial; bsp_wn+kd: 2 K x 2 seeds; bsp_ize+kd: no K, 2 seeds.
+TINY_TRIALS = 1 + 4 + 2
 
 
 class SpyExecutor(executors.InlineExecutor):
-    """Inline, recording the cells it runs; can stop after `stop_after` cells."""
+    """Inline, recording the trials it runs; can stop after `stop_after` trials."""
 
     def __init__(self, stop_after=None):
-        super().__init__(lab.run_cell)
+        super().__init__(lab.run_trial)
         self.ran, self.stop_after = [], stop_after
 
     def map(self, spec, todo, scene_data=None, progress=None):
-        for cell, rows in super().map(spec, todo, scene_data, progress):
+        for trial, rows in super().map(spec, todo, scene_data, progress):
             if self.stop_after is not None and len(self.ran) == self.stop_after:
                 raise KeyboardInterrupt
-            self.ran.append(cell)
-            yield cell, rows
+            self.ran.append(trial)
+            yield trial, rows
 
 
 def spec(**changes):
@@ -56,9 +56,9 @@ def read_csv(path):
         return list(csv.DictReader(f))
 
 
-def test_rows_cover_every_cell_and_workload(tmp_path):
+def test_rows_cover_every_trial_and_workload(tmp_path):
     rows = lab.run(spec(), tmp_path / "r", quiet=True)
-    assert len(rows) == TINY_CELLS * 2
+    assert len(rows) == TINY_TRIALS * 2
     on_disk = read_csv(tmp_path / "r")
     assert len(on_disk) == len(rows)
     keys = {(r["method"], r["k"], r["seed"], r["workload"]) for r in on_disk}
@@ -78,24 +78,24 @@ def test_rows_cover_every_cell_and_workload(tmp_path):
     assert meta["spec"]["methods"] == TINY["methods"]
     assert meta["runs"][-1]["machine"]["cores"] >= 1
     assert meta["runs"][-1]["machine"]["versions"]["embreex"]
-    assert meta["runs"][-1]["cells_after"] == TINY_CELLS
+    assert meta["runs"][-1]["cells_after"] == TINY_TRIALS
 
 
-def test_resume_runs_only_the_missing_cells(tmp_path):
+def test_resume_runs_only_the_missing_trials(tmp_path):
     first = SpyExecutor(stop_after=3)
     with pytest.raises(KeyboardInterrupt):
         lab.run(spec(), tmp_path / "r", executor=first, quiet=True)
     assert len(read_csv(tmp_path / "r")) == 3 * 2
     second = SpyExecutor()
     rows = lab.run(spec(), tmp_path / "r", executor=second, quiet=True)
-    assert len(second.ran) == TINY_CELLS - 3
+    assert len(second.ran) == TINY_TRIALS - 3
     assert not {c.key for c in first.ran} & {c.key for c in second.ran}
-    assert len(rows) == len(read_csv(tmp_path / "r")) == TINY_CELLS * 2
+    assert len(rows) == len(read_csv(tmp_path / "r")) == TINY_TRIALS * 2
     third = SpyExecutor()
     lab.run(spec(), tmp_path / "r", executor=third, quiet=True)
     assert third.ran == []  # nothing left to do
     meta = json.loads((tmp_path / "r.json").read_text())
-    assert [r["cells_before"] for r in meta["runs"]] == [0, 3, TINY_CELLS]
+    assert [r["cells_before"] for r in meta["runs"]] == [0, 3, TINY_TRIALS]
 
 
 def test_a_cut_last_line_is_run_again(tmp_path):
@@ -106,7 +106,7 @@ def test_a_cut_last_line_is_run_again(tmp_path):
     spy = SpyExecutor()
     lab.run(spec(), tmp_path / "r", executor=spy, quiet=True)
     assert len(spy.ran) == 1
-    assert len(read_csv(tmp_path / "r")) == TINY_CELLS * 2
+    assert len(read_csv(tmp_path / "r")) == TINY_TRIALS * 2
 
 
 def test_another_spec_does_not_resume_into_old_results(tmp_path):
@@ -270,7 +270,7 @@ def test_spec_files_and_the_command_line(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert len(read_csv(out)) == 1 and (tmp_path / "rep.md").exists()
-    assert "1/1 cells" in r.stderr  # the progress bar
+    assert "1/1 trials" in r.stderr  # the progress bar
     bad = tmp_path / "bad.toml"
     bad.write_text('scenes = ["room"]\nmethods = ["bsp_wn+kd"]\nks = "1..4"\n')
     r = subprocess.run([sys.executable, "-m", "bsplab", "experiment", str(bad)],

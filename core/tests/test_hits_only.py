@@ -2,7 +2,7 @@
 shaded, normal and depth modes) against the counting path: the same tree must
 give the same closest hits, bit for bit, for every method, ray family, range,
 culling setting and thread count. Both paths are one traversal compiled
-twice (core/src/traverse.cpp), so any difference is a bug in the policy that
+twice (core/src/trace/traverse.cpp), so any difference is a bug in the policy that
 removes the counters."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""The tracing kernels of every instruction-set level (core/src/kernels/,
-compiled once per level, chosen at run time by core/src/cpu_dispatch.cpp).
+"""The tracing kernels of every instruction-set level (core/src/trace/kernels/,
+compiled once per level, chosen at run time by core/src/trace/cpu_dispatch.cpp).
 
 Each level this CPU supports is forced in a subprocess with BSPLAB_ISA and
 must give the same hits as the level chosen here, bit for bit, for every

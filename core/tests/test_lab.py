@@ -123,8 +123,8 @@ def test_the_import_scan_sees_relative_imports(tmp_path):
     """The scan above would catch the ways a module can reach the lab."""
     fake = tmp_path / "bsplab" / "thing.py"
     fake.parent.mkdir()
-    fake.write_text("from . import lab\nfrom .lab import report\nimport bsplab.lab.cells\n")
-    assert {"bsplab.lab", "bsplab.lab.report", "bsplab.lab.cells"} <= set(_imports_of(fake))
+    fake.write_text("from . import lab\nfrom .lab import report\nimport bsplab.lab.trials\n")
+    assert {"bsplab.lab", "bsplab.lab.report", "bsplab.lab.trials"} <= set(_imports_of(fake))
 
 
 # -----------------------------------------------------------------------------
@@ -178,15 +178,15 @@ def test_bad_benchmark_keys_say_what_is_wrong(changes, message):
         make_spec({"scenes": ["room"], "methods": ["kd", "bsp_wn+kd"], **changes})
 
 
-def test_variants_make_cells_of_their_own():
-    from bsplab.lab import cells
+def test_variants_make_trials_of_their_own():
+    from bsplab.lab import trials
     spec = make_spec({"scenes": ["room"], "methods": ["kd", "bsp_wn+kd"], "ks": [4],
                       "variants": [{"leaf_boxes": "triangle"}, {"leaf_boxes": "clipped"}],
                       "method_variants": {"kd": [{}]}})
-    got = [(c.method, c.variant) for c in cells(spec)]
+    got = [(c.method, c.variant) for c in trials(spec)]
     assert got == [("kd", ""), ("bsp_wn+kd", '{"leaf_boxes": "triangle"}'),
                    ("bsp_wn+kd", '{"leaf_boxes": "clipped"}')]
-    assert len({c.key for c in cells(spec)}) == 3
+    assert len({c.key for c in trials(spec)}) == 3
 
 
 # -----------------------------------------------------------------------------
@@ -369,7 +369,7 @@ def test_bench_cull_pairs_culling_on_with_off(tmp_path):
     spec = benchmarks.benchmark_spec("bench_cull", ["room"])
     assert spec.cull and len(spec.variants) == 2 and len(spec.method_variants["kd"]) == 4
     out = tmp_path / "cull.md"
-    # The shipped spec's cells, on fewer rays: every method, both box kinds.
+    # The shipped spec's trials, on fewer rays: every method, both box kinds.
     # Three rounds: the median survives one preempted trace (these take 0.1 ms).
     assert benchmarks.bench_cull(out, ["room"], side=16, repeats=3) == 0
     rows = _table(out.read_text(), "# Benchmark")
@@ -393,6 +393,6 @@ def test_bench_command_line(tmp_path):
     assert r.returncode == 0, r.stderr
     from bsplab.lab import benchmarks
     trees = len(benchmarks.benchmark_spec("bench", ["room"]).methods)
-    assert f"{trees}/{trees} cells" in r.stderr  # the runner's progress bar
+    assert f"{trees}/{trees} trials" in r.stderr  # the runner's progress bar
     assert "Command: `python -m bsplab bench --scenes room" in out.read_text()
     assert (tmp_path / "docs" / "data" / "benchmark.json").exists()

@@ -1,4 +1,4 @@
-"""The hits-only path's SIMD leaf test (core/src/kernels/leaf_simd.hpp)
+"""The hits-only path's SIMD leaf test (core/src/trace/kernels/leaf_simd.hpp)
 against the counting path's one-triangle-at-a-time test, on leaves built to
 be hard for it: big leaves (blocks of 4, 8 and 16 lanes and a remainder),
 exact ties (the same triangle several times: the first in leaf order must

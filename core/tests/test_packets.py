@@ -1,4 +1,4 @@
-"""Ray packets (`intersect(..., packets=True)`, core/src/kernels/packet.hpp)
+"""Ray packets (`intersect(..., packets=True)`, core/src/trace/kernels/packet.hpp)
 against the single-ray hits-only path: the same closest hits, bit for bit,
 for every method, ray family and order (coherent camera tiles, or shuffled
 rays whose packets split at every node), per-ray ranges, scaled trees, ray

@@ -1,4 +1,4 @@
-"""Cells: one tree of a spec (scene, method, K, seed, option variant), built
+"""Trials: one tree of a spec (scene, method, K, seed, option variant), built
 once and traced on every workload of the spec with the lab's timing protocol
 (`timing.paired_rounds`) beside its references, giving one row per workload.
 
@@ -17,11 +17,11 @@ from .. import scenes, workloads
 from ..camera import tile_order
 from .spec import Spec, build_options
 from .timing import PairedTimes, format_times, paired_rounds
-from .tracers import HITS_ONLY_PATHS, Rays, cell_tracers
+from .tracers import HITS_ONLY_PATHS, Rays, trial_tracers
 
 
 @dataclass(frozen=True)
-class Cell:
+class Trial:
     scene: str
     method: str
     k: int | None
@@ -40,9 +40,9 @@ class Cell:
         return f"{Path(self.scene).name} {self.method}{k} seed {self.seed}{v}"
 
 
-def cells(spec: Spec) -> list[Cell]:
-    """Every cell of the spec, ordered by scene (a worker keeps its scene loaded)."""
-    return [Cell(scene, method, k, seed, variant)
+def trials(spec: Spec) -> list[Trial]:
+    """Every trial of the spec, ordered by scene (a worker keeps its scene loaded)."""
+    return [Trial(scene, method, k, seed, variant)
             for scene in spec.scenes
             for method in spec.methods
             for k in spec.ks_of(method)
@@ -100,9 +100,9 @@ _reference_cache: dict = {}
 
 def scene_references(spec: Spec, scene: str, data: SceneData):
     """Embree over the scene (None where it can't run here) and the
-    workloads' rays, made once per scene and ray settings: every cell of a
+    workloads' rays, made once per scene and ray settings: every trial of a
     scene traces the same rays beside the same Embree, so building them per
-    cell would only repeat the work."""
+    trial would only repeat the work."""
     from .. import oracle
     # Not inside a Blender whose own Embree clashes with embreex's.
     usable = oracle.available() and oracle.foreign_embree_library() is None
@@ -121,8 +121,8 @@ _kd_cache: dict = {}
 
 
 def kd_reference(spec: Spec, scene: str, data: SceneData):
-    """The kd-tree every cell of a scene is timed against, built once per process
-    (with the spec's options, not a variant's: one reference for all cells)."""
+    """The kd-tree every trial of a scene is timed against, built once per process
+    (with the spec's options, not a variant's: one reference for all trials)."""
     from .. import build
     opts = build_options(spec, "kd")
     key = (scene, id(data.triangles), json.dumps(opts, sort_keys=True))
@@ -132,18 +132,18 @@ def kd_reference(spec: Spec, scene: str, data: SceneData):
     return _kd_cache[key]
 
 
-def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
+def run_trial(spec: Spec, trial: Trial, scene_data: SceneData | None = None,
              progress=None) -> list[dict]:
-    """Builds the cell's tree and traces every workload; one row per workload."""
+    """Builds the trial's tree and traces every workload; one row per workload."""
     from .. import Cancelled, build
-    data = scene_data or load_scene(cell.scene)
+    data = scene_data or load_scene(trial.scene)
     tris = data.triangles
-    embree, rays = scene_references(spec, cell.scene, data)
-    tree = build(tris, method=cell.method, threads=spec.build_threads, progress=progress,
-                 **build_options(spec, cell.method, cell.k, cell.seed, cell.variant))
-    # A kd cell is its own reference, unless a variant made it another kd-tree.
-    own_reference = cell.method == "kd" and not cell.variant
-    kd = tree if own_reference else kd_reference(spec, cell.scene, data)
+    embree, rays = scene_references(spec, trial.scene, data)
+    tree = build(tris, method=trial.method, threads=spec.build_threads, progress=progress,
+                 **build_options(spec, trial.method, trial.k, trial.seed, trial.variant))
+    # A kd trial is its own reference, unless a variant made it another kd-tree.
+    own_reference = trial.method == "kd" and not trial.variant
+    kd = tree if own_reference else kd_reference(spec, trial.scene, data)
 
     def check_cancel():
         if progress is not None and progress.cancelled:
@@ -151,11 +151,11 @@ def run_cell(spec: Spec, cell: Cell, scene_data: SceneData | None = None,
 
     rows = []
     for r in rays.values():
-        times = paired_rounds(cell_tracers(tree, kd, embree, spec, r), spec.repetitions,
+        times = paired_rounds(trial_tracers(tree, kd, embree, spec, r), spec.repetitions,
                               between_rounds=check_cancel)
         if kd is tree:
             times.seconds["kd"] = times.seconds["ours"]
-        rows.append(_row(cell, tris, tree.stats, r, times, embree))
+        rows.append(_row(trial, tris, tree.stats, r, times, embree))
     return rows
 
 
@@ -168,14 +168,14 @@ def _unexplained(hits: dict, embree_hits: dict, tris, rays: Rays) -> tuple[int, 
     return len(c["unexplained"]), c["grazing"]
 
 
-def _row(cell: Cell, tris, s: dict, rays: Rays, times: PairedTimes, embree) -> dict:
+def _row(trial: Trial, tris, s: dict, rays: Rays, times: PairedTimes, embree) -> dict:
     hits = times.results["ours"]
     unexplained = grazing = ""
     if embree is not None:
         unexplained, grazing = _unexplained(hits, times.results["embree"], tris, rays)
     row = {
-        "scene": cell.scene, "triangles": len(tris), "method": cell.method,
-        "k": "" if cell.k is None else cell.k, "seed": cell.seed, "workload": rays.workload,
+        "scene": trial.scene, "triangles": len(tris), "method": trial.method,
+        "k": "" if trial.k is None else trial.k, "seed": trial.seed, "workload": rays.workload,
         "rays": len(rays.origins), "build_s": s["build_seconds"], "nodes": s["nodes"],
         "kd_nodes": s["kd_nodes"], "general_nodes": s["general_nodes"],
         "leaves": s["leaves"], "refs_per_tri": s["duplication"], "bytes": s["bytes"],
@@ -191,7 +191,7 @@ def _row(cell: Cell, tris, s: dict, rays: Rays, times: PairedTimes, embree) -> d
         "hits": int((hits["prim"] >= 0).sum()),
         "unexplained": unexplained, "grazing": grazing,
         "embree_build_s": embree.build_seconds if embree else "",
-        "variant": cell.variant, "max_depth": s["max_depth"],
+        "variant": trial.variant, "max_depth": s["max_depth"],
         "mean_leaf_size": s["mean_leaf_size"], "box_bytes": s["box_bytes"],
         "warnings": "; ".join(s.get("warnings", ())),
         "cull_s": "", "cull_tests": "", "culled": "", "cull_differs": "",

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The scene camera as the core's `bsplab.Camera` parameters.
+"""The scene camera as the library's `bsplab.Camera` parameters.
 
 Takes bpy objects, imports neither bpy nor the rest of bsplab (see
 bsplab/blender/__init__.py for why)."""
@@ -15,7 +15,7 @@ class CameraError(Exception):
 
 @dataclass
 class CameraSpec:
-    """Everything the core needs to make the camera rays; no bpy references."""
+    """Everything `bsplab.Camera` needs to make the camera rays; no bpy references."""
 
     matrix_world: np.ndarray  # (4, 4) float64, scale removed
     lens: float

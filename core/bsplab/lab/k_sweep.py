@@ -8,7 +8,7 @@ import tempfile
 
 import numpy as np
 
-from .cells import SceneData, cells
+from .trials import SceneData, trials
 from .report import Results, wrong_hits
 from .runner import run
 from .spec import make_spec
@@ -23,7 +23,7 @@ def sweep_k(triangles, camera, methods: list[str], ks: dict, *, repetitions: int
     `width` x `height` rays or the secondary rays of `workload`.
 
     `progress` (a bsplab.Progress) lets another thread cancel;
-    `on_progress(done, total, label)` is called as cells finish."""
+    `on_progress(done, total, label)` is called as trials finish."""
     scene_key = "memory:" + scene_name
     with_k = {m: list(k) for m, k in ks.items() if list(k) != [None]}
     first_k = min((k for v in with_k.values() for k in v), default=6)
@@ -33,7 +33,7 @@ def sweep_k(triangles, camera, methods: list[str], ks: dict, *, repetitions: int
         "workloads": [workload], "width": width, "height": height, "executor": "inline",
     }, check_files=False)
     data = {scene_key: SceneData(np.asarray(triangles), camera)}
-    total = len(cells(spec))
+    total = len(trials(spec))
     if on_progress:
         on_progress(0, total, "starting")
     with tempfile.TemporaryDirectory() as tmp:
