@@ -14,7 +14,7 @@ from bsplab import io, scenes
 
 from test_memory_limit import soup
 
-REPO_SCENES = Path(__file__).resolve().parents[2] / "scenes"
+REPO_SCENES = Path(__file__).resolve().parents[3] / "scenes"
 
 
 @pytest.mark.parametrize("name", ["room", "spheres"])

@@ -21,7 +21,7 @@ from bsplab import io, scenes
 from bsplab.lab import SpecError, make_spec, paired_rounds, Tracer
 from bsplab.lab.spec import LATER_KEYS
 
-PACKAGE = Path(__file__).resolve().parents[1] / "bsplab"
+PACKAGE = Path(__file__).resolve().parents[2] / "bsplab"
 
 
 # -----------------------------------------------------------------------------

@@ -9,7 +9,7 @@ import pytest
 from bsplab import io
 from bsplab.formats import ply
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 SHARED = REPO.parent / "shared" / "scenes"
 
 

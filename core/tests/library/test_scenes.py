@@ -7,7 +7,7 @@ import pytest
 
 from bsplab import io, scenes
 
-SHIPPED = Path(__file__).resolve().parents[2] / "scenes"
+SHIPPED = Path(__file__).resolve().parents[3] / "scenes"
 COUNTS = {"room": (2076, 1594), "spheres": (48480, 24361), "fan": (9264, 9366)}  # (tris, verts)
 
 

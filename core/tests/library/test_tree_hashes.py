@@ -7,7 +7,7 @@ formulas and bare kind bits. A change that moves one plane or rounds one cost
 differently changes a hash here.
 
 A deliberate change of the trees (a new cost term, another tie rule) updates
-tree_hashes.json: `python core/tests/test_tree_hashes.py` prints the new
+tree_hashes.json: `python core/tests/library/test_tree_hashes.py` prints the new
 "defaults" entries; say in the commit why the trees changed."""
 
 import hashlib
