@@ -10,7 +10,7 @@
 //
 // The triangles are read from the scene's triangle array through the
 // leaf's references, no copy in a SIMD layout: 0 extra bytes per reference
-// (docs/architecture.md says what the copies would cost and what was measured).
+// (docs/performance.md says what the copies would cost and what was measured).
 // Included by single_ray.hpp only (which checks it is compiled per
 // instruction set), inside one level's namespace (see trace_kernels.cpp).
 #pragma once

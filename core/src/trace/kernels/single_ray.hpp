@@ -156,7 +156,7 @@ struct CountNothing {
 // rays on sponza and sibenik -8 to -10 % with blocks from 2 triangles up,
 // -4 % from 5 up); from 8 up the shared scenes' kd trees time as before and
 // trees with big leaves (intersect_cost 0.3) trace random rays 10-19 %
-// faster (docs/architecture.md has the figures).
+// faster (docs/performance.md has the figures).
 constexpr uint32_t kSimdLeafMin = 8;
 // Even where no leaf takes the blocks, their code in the traversal loop cost
 // the default kd trees (3 references per non-empty leaf) 1-4 % of their
@@ -354,7 +354,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
                 // takes starts with a node already on its way (random rays
                 // about 4 % faster against Embree, median of the shared
                 // scenes; on camera rays, whose branches predict well, the
-                // extra fetch cost 1-7 %: docs/architecture.md).
+                // extra fetch cost 1-7 %: docs/performance.md).
                 if constexpr (kPrefetchAbove) __builtin_prefetch(nodes + above_child);
             } else {
                 count.general_step();
@@ -382,7 +382,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
             // the time. A branchless step - the far entry always written,
             // the stack top advanced by the "both" case, next node and t1
             // by bit masks - traced primary rays at 0.2-0.4 of this speed
-            // and random rays at 0.9-1.0; docs/architecture.md):
+            // and random rays at 0.9-1.0; docs/performance.md):
             //   crossed before this cell (or behind the origin): the exit
             //     child only, over the same [t0, t1];
             //   crossed beyond this cell: the entry child only;
