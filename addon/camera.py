@@ -25,4 +25,4 @@ def preview_size(render, preview_percentage):
 def __getattr__(name):
     if name.startswith("__"):
         raise AttributeError(name)
-    return getattr(backend.blender_module("camera"), name)
+    return getattr(backend.blender_module("scene_camera"), name)

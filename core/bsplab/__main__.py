@@ -211,7 +211,7 @@ def cmd_bench_families(args) -> int:
     rows = family_bench.run(args.scenes, methods, args.rays, k=args.k, rounds=args.repeats)
     bad = sum(r["leaks"] + r["unexplained"] + sum(r["paths"].values()) for r in rows)
     print(f"\n{bad} leaks, unexplained disagreements and path differences in {len(rows)} "
-          "scene x method x family cells")
+          "scene x method x family trials")
     return 1 if bad else 0
 
 
@@ -223,7 +223,7 @@ def cmd_agree(args) -> int:
     agreement.check_k(methods, args.k, named)
     rows = agreement.run(args.scenes, methods, args.rays, k=args.k, seed=args.seed)
     bad = sum(r["unexplained"] for r in rows)
-    print(f"\n{bad} unexplained disagreements in {len(rows)} scene x method x family cells")
+    print(f"\n{bad} unexplained disagreements in {len(rows)} scene x method x family trials")
     return 1 if bad else 0
 
 
@@ -352,7 +352,7 @@ def main(argv=None) -> int:
                                  "out/experiments/<name>")
     x.add_argument("--fresh", action="store_true", help="discard earlier results at --out")
     x.add_argument("--executor", choices=["process", "dask", "inline"])
-    x.add_argument("--workers", type=whole(1), help="parallel cells")
+    x.add_argument("--workers", type=whole(1), help="parallel trials")
     x.add_argument("--scheduler", help="dask scheduler address (default: a local cluster)")
     x.add_argument("--repetitions", type=whole(1))
     x.add_argument("--report", help="also write a Markdown report (and plots) here")
@@ -366,10 +366,10 @@ def main(argv=None) -> int:
 
     q = sub.add_parser("results", help="regenerate docs/results.md and its plots")
     q.add_argument("--quick", action="store_true",
-                   help="small scenes and few cells (for CI, under 3 minutes)")
+                   help="small scenes and few trials (for CI, under 3 minutes)")
     q.add_argument("--out", default="docs/results.md")
     q.add_argument("--resume", action="store_true",
-                   help="keep the finished cells of an interrupted run")
+                   help="keep the finished trials of an interrupted run")
     q.set_defaults(func=cmd_results)
 
     v = sub.add_parser("verdict", help="the experiments behind the results' discussion "

@@ -101,6 +101,6 @@ def measured_options(method, given: dict) -> dict:
         raise ValueError(f"costs='measured' sets {', '.join(both)} from the measured costs "
                          "file; give either costs='measured' or the costs themselves")
     measured = read_costs()
-    if method.builder == "bsp" and not method.kd_nodes:
+    if method.all_general_nodes:
         measured["traversal_cost"] = measured["general_cost"]
     return {name: value for name, value in measured.items() if name in method.params}

@@ -6,7 +6,7 @@ parameters; `build_scene(spec)` turns it into float32 triangles. Positions
 are snapped to a grid of eighths so that faces of different parts often
 coincide, share planes or touch - the cases float code gets wrong. The
 Hypothesis strategies that draw specs live in the test suite
-(core/tests/test_fuzz.py); this module only needs numpy.
+(core/tests/library/test_fuzz.py); this module only needs numpy.
 """
 
 from __future__ import annotations

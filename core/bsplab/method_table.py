@@ -28,7 +28,7 @@ COMMON_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"
 # that apply to it in `extra`).
 BSP_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"] == "bsp"}
 
-# The direction strategies of the core (core/src/strategies/).
+# The direction strategies of the core (core/src/build/strategies/).
 STRATEGIES: tuple[str, ...] = tuple(_REGISTRY["strategies"])
 
 
@@ -38,6 +38,9 @@ class Method:
     label: str
     description: str
     builder: str                 # "kd" (Wald-Havran) or "bsp" (the one sweep builder)
+    # Every interior node of its trees is a general node (the sweep builder
+    # without ^Kd), so its traversal step is the general step.
+    all_general_nodes: bool = False
     strategy: str = "axes"       # a name in STRATEGIES
     plus_axes: bool = False      # "+": the three axes are among the K directions
     kd_nodes: bool = False       # ^Kd: axis splits stored and traversed as kd nodes
@@ -66,8 +69,8 @@ class Method:
 
 def _method(entry: dict) -> Method:
     return Method(entry["name"], entry["label"], entry["description"], entry["builder"],
-                  entry["strategy"], entry["plus_axes"], entry["kd_nodes"],
-                  tuple(entry["options"]), dict(entry["defaults"]))
+                  entry["all_general_nodes"], entry["strategy"], entry["plus_axes"],
+                  entry["kd_nodes"], tuple(entry["options"]), dict(entry["defaults"]))
 
 
 _MIN_K = {m["name"]: m["min_k"] for m in _REGISTRY["methods"]}

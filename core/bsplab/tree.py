@@ -187,13 +187,6 @@ def _finite_vector(value, name: str) -> np.ndarray:
     return f
 
 
-def core_options(method, opts: dict):
-    """The checked options as the core's BuildOptions: the registry sets each
-    by name (rbsp_set's "auto" resolved there too), and the method's
-    strategy, plus_axes and kd_nodes."""
-    return _core.options_for(method.name, opts)
-
-
 def build(triangles, method: str = "kd", *, progress=None, costs=None, **options) -> Tree:
     """Builds a tree of `method` over (N, 3, 3) triangles or (vertices, indices).
 
@@ -208,7 +201,10 @@ def build(triangles, method: str = "kd", *, progress=None, costs=None, **options
     opts = checks.build_options(m, options)
     progress = checks.progress(progress)
     try:
-        core_tree = _core.build(tris, m.builder, core_options(m, opts), progress)
+        # One call: the core's registry finds the method, sets the checked
+        # options by name (rbsp_set's "auto" resolved there too) and runs
+        # the method's builder.
+        core_tree = _core.build(tris, m.name, opts, progress)
     except MemoryError as e:
         # The core's "build needs more than ... (memory_limit_mb=...)": name the method.
         if str(e).startswith("build needs"):

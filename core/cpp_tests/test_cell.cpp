@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "cell.hpp"
+#include "build/cell.hpp"
 
 namespace bsp {
 namespace {
@@ -204,6 +204,82 @@ TEST(CellProjection, ProfileOfCubeAlongAxis) {
     }
 }
 
+// The surface of the box [lo, hi] with its extent along `axis` ending at t.
+double box_area_below(const Vec3d& lo, const Vec3d& hi, int axis, double t) {
+    Vec3d d = hi - lo;
+    (axis == 0 ? d.x : axis == 1 ? d.y : d.z) = t - (axis == 0 ? lo.x : axis == 1 ? lo.y : lo.z);
+    return 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x);
+}
+
+TEST(CellProjection, AreasOfABoxAreExactAlongEveryAxis) {
+    // A box that is not a cube: along each axis, the parts below and above
+    // every plane inside are boxes, directly (areas_at) and from the table
+    // (eval).
+    const Vec3d lo(-1.0, 0.0, 2.0), hi(3.0, 0.5, 4.0);
+    const Cell c = Cell::from_box({{-1.0f, 0.0f, 2.0f}, {3.0f, 0.5f, 4.0f}});
+    const double lows[3] = {lo.x, lo.y, lo.z}, highs[3] = {hi.x, hi.y, hi.z};
+    for (int axis = 0; axis < 3; ++axis) {
+        const Vec3d u(axis == 0, axis == 1, axis == 2);
+        EXPECT_NEAR(c.area(), box_area_below(lo, hi, axis, highs[axis]), 1e-12);
+        const CellProjection direct(c, u);
+        CellProjection table(c, u);
+        table.tabulate();
+        for (int i = 1; i < 8; ++i) {
+            const double t = lows[axis] + (highs[axis] - lows[axis]) * i / 8.0;
+            double b, a, tb, ta;
+            direct.areas_at(t, b, a);
+            table.eval(t, tb, ta);
+            const double below = box_area_below(lo, hi, axis, t);
+            // The part above is the box mirrored: [t, hi] along the axis.
+            const double above = box_area_below(lo, hi, axis, lows[axis] + highs[axis] - t);
+            EXPECT_NEAR(b, below, 1e-12 * below) << "axis " << axis << ", t = " << t;
+            EXPECT_NEAR(a, above, 1e-12 * above) << "axis " << axis << ", t = " << t;
+            EXPECT_NEAR(tb, b, 1e-9 * b) << "axis " << axis << ", t = " << t;
+            EXPECT_NEAR(ta, a, 1e-9 * a) << "axis " << axis << ", t = " << t;
+        }
+    }
+}
+
+TEST(CellProjection, TableEqualsDirectAreasInsideAndBeyondTheCell) {
+    // Unit cubes cut four times by planes through their middle region (the
+    // larger part kept each time), seen
+    // along random directions at offsets inside the cell and beyond either
+    // end: the table gives the direct areas, and the two parts together
+    // cover the cell's surface (SA(below) + SA(above) >= SA(cell)) wherever
+    // both are non-empty.
+    std::mt19937 gen(3);
+    std::normal_distribution<double> normal;
+    std::uniform_real_distribution<double> middle(0.3, 0.7), offset(-0.5, 2.0);
+    for (int i = 0; i < 20; ++i) {
+        Cell c = Cell::from_box({{0, 0, 0}, {1, 1, 1}});
+        for (int j = 0; j < 4; ++j) {
+            const Vec3d n = unit(normal(gen), normal(gen), normal(gen));
+            const Vec3d p(middle(gen), middle(gen), middle(gen));
+            Cell below, above;
+            c.split(n, dot(n, p), below, above);
+            c = below.area() > above.area() ? below : above;  // never empty
+        }
+        const double total = c.area();
+        ASSERT_GT(total, 0.0);
+        ASSERT_LT(total, 6.0);
+        const Vec3d u = unit(normal(gen), normal(gen), normal(gen));
+        const CellProjection direct(c, u);
+        CellProjection table(c, u);
+        table.tabulate();
+        for (int j = 0; j < 25; ++j) {
+            const double t = offset(gen);
+            double b, a, tb, ta;
+            direct.areas_at(t, b, a);
+            table.eval(t, tb, ta);
+            EXPECT_NEAR(tb, b, 1e-7 * b + 1e-12) << "t = " << t;
+            EXPECT_NEAR(ta, a, 1e-7 * a + 1e-12) << "t = " << t;
+            if (b > 0 && a > 0) {
+                EXPECT_GE(b + a, total * (1 - 1e-9)) << "t = " << t;
+            }
+        }
+    }
+}
+
 TEST(CellProjection, PlaneInAFaceMakesAFlatCellOnThatSide) {
     // A plane at either end of the cell: the flat cell it cuts off (the face
     // and the cap, back to back) has twice the face's area, at the bottom as
@@ -243,11 +319,9 @@ TEST(CellProjection, CutsOnlyInsideBeyondTheRounding) {
     EXPECT_TRUE(oblique.cuts(oblique.hi() - 1e-6));
 }
 
-TEST(CellProjection, ProfileMatchesTheCutCells) {
-    // Along random directions of a randomly cut cell, areas_at() gives the
-    // areas of the parts split() makes, and the tabulated eval() the same.
-    std::mt19937 gen(11);
-    std::uniform_real_distribution<double> coord(-1.0, 1.0), share(0.02, 0.98);
+// A randomly cut cell (three oblique halvings of the cube).
+Cell randomly_cut_cell(std::mt19937& gen) {
+    std::uniform_real_distribution<double> coord(-1.0, 1.0);
     Cell c = cube();
     for (int i = 0; i < 3; ++i) {
         Cell below, above;
@@ -257,6 +331,15 @@ TEST(CellProjection, ProfileMatchesTheCutCells) {
         c.split(n, 0.5 * (lo + hi), below, above);
         c = below;
     }
+    return c;
+}
+
+TEST(CellProjection, ProfileMatchesTheCutCells) {
+    // Along random directions of a randomly cut cell, areas_at() gives the
+    // areas of the parts split() makes, and the tabulated eval() the same.
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<double> coord(-1.0, 1.0), share(0.02, 0.98);
+    const Cell c = randomly_cut_cell(gen);
     for (int i = 0; i < 10; ++i) {
         const Vec3d u = unit(coord(gen), coord(gen), coord(gen));
         CellProjection cp(c, u);
@@ -276,21 +359,6 @@ TEST(CellProjection, ProfileMatchesTheCutCells) {
             EXPECT_NEAR(ta, a, tol);
         }
     }
-}
-
-// A randomly cut cell (three oblique halvings of the cube).
-Cell randomly_cut_cell(std::mt19937& gen) {
-    std::uniform_real_distribution<double> coord(-1.0, 1.0);
-    Cell c = cube();
-    for (int i = 0; i < 3; ++i) {
-        Cell below, above;
-        const Vec3d n = unit(coord(gen), coord(gen), coord(gen));
-        double lo, hi;
-        c.extent(n, lo, hi);
-        c.split(n, 0.5 * (lo + hi), below, above);
-        c = below;
-    }
-    return c;
 }
 
 TEST(CellProjection, ReprojectingEqualsAFreshProjection) {

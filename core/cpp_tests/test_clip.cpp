@@ -7,7 +7,7 @@
 #include <cmath>
 #include <random>
 
-#include "clip.hpp"
+#include "build/clip.hpp"
 
 namespace bsp {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "cost_model.hpp"
+#include "build/cost_model.hpp"
 
 namespace bsp {
 namespace {

@@ -5,7 +5,7 @@
 
 #include <random>
 
-#include "kd_events.hpp"
+#include "build/kd_events.hpp"
 
 namespace bsp {
 namespace {

@@ -5,8 +5,8 @@
 
 #include <random>
 
-#include "bsp_build.hpp"
-#include "kd_build.hpp"
+#include "build/bsp_build.hpp"
+#include "build/kd_build.hpp"
 #include "tree.hpp"
 
 namespace bsp {

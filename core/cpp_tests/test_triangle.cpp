@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "triangle.hpp"
+#include "trace/triangle.hpp"
 
 namespace bsp {
 namespace {

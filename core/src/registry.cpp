@@ -5,37 +5,12 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "build/bsp_build.hpp"
+#include "build/kd_build.hpp"
+
 namespace bsp {
 
-// ---- The direction strategies ----------------------------------------------
-//
-// Each lives in strategies/<name>.cpp. They are listed here rather than
-// registering themselves from static initialisers: the linker drops object
-// files of a static library that nothing references, and with them such
-// self-registration.
-
-std::unique_ptr<DirectionStrategy> make_axes_strategy(const BuildOptions&);
-std::unique_ptr<DirectionStrategy> make_fixed_strategy(const BuildOptions&);
-std::unique_ptr<DirectionStrategy> make_random_strategy(const BuildOptions&);
-std::unique_ptr<DirectionStrategy> make_normals_strategy(const BuildOptions&);
-std::unique_ptr<DirectionStrategy> make_clustered_strategy(const BuildOptions&);
-std::unique_ptr<DirectionStrategy> make_ize_strategy(const BuildOptions&);
-
 namespace {
-
-struct StrategyEntry {
-    const char* name;
-    StrategyFactory make;
-};
-
-const StrategyEntry kStrategies[] = {
-    {"axes", make_axes_strategy},          // kd: the three axes
-    {"fixed", make_fixed_strategy},        // RBSP: one fixed set for the whole tree
-    {"random", make_random_strategy},      // BSP_random(+): fresh random directions per node
-    {"normals", make_normals_strategy},    // BSP_wn(+): normals of random triangles of the node
-    {"clustered", make_clustered_strategy},// BSP_cn(+): k-means of the node's normals
-    {"ize", make_ize_strategy},            // BSP_IZE: kd planes + each triangle's own planes
-};
 
 // ---- Setting BuildOptions fields from OptionValues -------------------------
 
@@ -184,10 +159,15 @@ std::vector<OptionSpec> make_option_specs() {
 
 #undef NUMBER_FIELD
 
+// ---- The builders -------------------------------------------------------------
+
+const Builder kKdBuilder{"kd", build_kd_tree, false};
+const Builder kSweepBuilder{"bsp", build_bsp_tree, true};
+
 // ---- The methods -------------------------------------------------------------
 
 using Options = std::vector<std::string>;
-const Options kSweep = {"k", "seed"};
+const Options kSweepOptions = {"k", "seed"};
 const Options kKdCosts = {"alpha", "general_cost"};
 
 Options operator+(Options a, const Options& b) {
@@ -206,12 +186,12 @@ void add_family(std::vector<MethodSpec>& out, const std::string& base, const std
                 int64_t k_default) {
     const std::vector<std::pair<std::string, OptionValue>> k = {{"k", whole(k_default)}};
     out.push_back(
-        {base, label, what + " at every node.", "bsp", strategy, false, false, options, k});
-    out.push_back({base + "+", label + "+", "The three axes plus " + lower(what) + ".", "bsp",
-                   strategy, true, false, options, k});
+        {base, label, what + " at every node.", kSweepBuilder, strategy, false, false, options, k});
+    out.push_back({base + "+", label + "+", "The three axes plus " + lower(what) + ".",
+                   kSweepBuilder, strategy, true, false, options, k});
     out.push_back({base + "+kd", label + "+ ^Kd",
-                   "The three axes plus " + lower(what) + "; axis splits are fast kd nodes.", "bsp",
-                   strategy, true, true, options + kKdCosts, k});
+                   "The three axes plus " + lower(what) + "; axis splits are fast kd nodes.",
+                   kSweepBuilder, strategy, true, true, options + kKdCosts, k});
 }
 
 std::vector<MethodSpec> make_method_specs() {
@@ -219,26 +199,28 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"kd", "kd (SAH)",
                  "Axis-aligned kd-tree, SAH with perfect splits, O(N log N) build "
                  "(Wald & Havran 2006).",
-                 "kd"});
+                 kKdBuilder});
     m.push_back({"rbsp", "RBSP",
                  "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
                  "else the three axes plus K - 3 golden-spiral points) at every node.",
-                 "bsp", "fixed", false, false, kSweep + Options{"rbsp_set"}, {{"k", whole(13)}}});
-    m.push_back({"rbsp+kd", "RBSP ^Kd", "RBSP whose axis splits are fast kd nodes.", "bsp",
-                 "fixed", false, true, kSweep + Options{"rbsp_set"} + kKdCosts,
+                 kSweepBuilder, "fixed", false, false, kSweepOptions + Options{"rbsp_set"},
                  {{"k", whole(13)}}});
-    add_family(m, "bsp_random", "BSP random", "K random directions, fresh", "random", kSweep, 10);
+    m.push_back({"rbsp+kd", "RBSP ^Kd", "RBSP whose axis splits are fast kd nodes.", kSweepBuilder,
+                 "fixed", false, true, kSweepOptions + Options{"rbsp_set"} + kKdCosts,
+                 {{"k", whole(13)}}});
+    add_family(m, "bsp_random", "BSP random", "K random directions, fresh", "random",
+               kSweepOptions, 10);
     add_family(m, "bsp_wn", "BSP wn", "The normals of K random triangles of the node", "normals",
-               kSweep, 6);
+               kSweepOptions, 6);
     add_family(m, "bsp_cn", "BSP cn",
                "K cluster centres (antipodal spherical k-means) of the node's normals",
-               "clustered", kSweep + Options{"cluster_iterations", "cluster_sample"}, 6);
+               "clustered", kSweepOptions + Options{"cluster_iterations", "cluster_sample"}, 6);
     m.push_back({"bsp_ize", "BSP IZE",
                  "kd planes plus every triangle's own plane and its three edge planes "
                  "(Ize, Wald & Parker 2008).",
-                 "bsp", "ize", true, false, {"seed", "ize_candidates"}});
-    m.push_back({"bsp_ize+kd", "BSP IZE ^Kd", "BSP_IZE whose axis splits are fast kd nodes.", "bsp",
-                 "ize", true, true, Options{"seed", "ize_candidates"} + kKdCosts});
+                 kSweepBuilder, "ize", true, false, {"seed", "ize_candidates"}});
+    m.push_back({"bsp_ize+kd", "BSP IZE ^Kd", "BSP_IZE whose axis splits are fast kd nodes.",
+                 kSweepBuilder, "ize", true, true, Options{"seed", "ize_candidates"} + kKdCosts});
     return m;
 }
 
@@ -272,21 +254,6 @@ const MethodSpec& method_spec(const std::string& name) {
     return find_by_name(method_specs(), name, "method");
 }
 
-std::vector<std::string> strategy_names() {
-    std::vector<std::string> out;
-    for (const StrategyEntry& s : kStrategies) out.push_back(s.name);
-    return out;
-}
-
-std::unique_ptr<DirectionStrategy> make_strategy(const BuildOptions& options) {
-    for (const StrategyEntry& s : kStrategies)
-        if (options.strategy == s.name) return s.make(options);
-    std::string known;
-    for (const std::string& n : strategy_names()) known += (known.empty() ? "" : ", ") + n;
-    throw std::invalid_argument("unknown direction strategy " + options.strategy + "; known: " +
-                                known);
-}
-
 BuildOptions options_for(const MethodSpec& method,
                          const std::map<std::string, OptionValue>& values) {
     BuildOptions o;
@@ -305,6 +272,12 @@ BuildOptions options_for(const MethodSpec& method,
         }
     }
     return o;
+}
+
+Tree build(const std::string& method, std::vector<Triangle> triangles,
+           const std::map<std::string, OptionValue>& values, Progress* progress) {
+    const MethodSpec& spec = method_spec(method);
+    return spec.builder.build(std::move(triangles), options_for(spec, values), progress);
 }
 
 }  // namespace bsp

@@ -1,8 +1,11 @@
-// The one table of tree methods and build options. Everything else reads
-// it: the bindings export it (_core.registry()), the Python package builds
-// its method table and option checks from it, the Blender add-on its panel.
-// A method is a builder plus a direction strategy plus the options that
-// apply; an option is a typed, limited BuildOptions field with help text.
+// The one table of tree methods and build options, and the one way in to
+// building: build() finds the method by name, sets its options by name and
+// runs its builder. Everything else reads the table: the bindings export it
+// (_core.registry()), the Python package builds its method table and option
+// checks from it, the Blender add-on its panel.
+// A method is a builder (build/builder.hpp) plus a direction strategy plus
+// the options that apply; an option is a typed, limited BuildOptions field
+// with help text.
 #pragma once
 #include <cstdint>
 #include <map>
@@ -12,7 +15,9 @@
 #include <variant>
 #include <vector>
 
-#include "strategies/strategy.hpp"
+#include "build/builder.hpp"
+#include "build/strategies/strategy.hpp"
+#include "progress.hpp"
 #include "tree.hpp"
 
 namespace bsp {
@@ -49,7 +54,7 @@ struct OptionSpec {
 
 struct MethodSpec {
     std::string name, label, description;
-    std::string builder;           // "kd" (Wald-Havran) or "bsp" (the one sweep builder)
+    Builder builder;               // kd (Wald-Havran) or bsp (the one sweep builder)
     std::string strategy = "axes"; // a name in strategy_names()
     bool plus_axes = false;        // "+": the three axes are among the K directions
     bool kd_nodes = false;         // ^Kd: axis splits stored and traversed as kd nodes
@@ -59,6 +64,10 @@ struct MethodSpec {
     // A "+" method counts the three axes among its K, so it needs K >= 3.
     int min_k() const { return plus_axes ? 3 : 1; }
     int max_k() const { return kMaxK; }
+    // Every interior node of its trees is a general node, so the traversal
+    // step its traversal_cost prices is the general step (the measured
+    // costs, bsplab/costs.py).
+    bool all_general_nodes() const { return builder.general_nodes && !kd_nodes; }
 };
 
 // In order: the common options, then the BSP family's. K comes before the
@@ -69,13 +78,16 @@ const std::vector<MethodSpec>& method_specs();
 const OptionSpec& option_spec(const std::string& name);
 const MethodSpec& method_spec(const std::string& name);
 
-// The names of the direction strategies, and the one a tree's options name.
-std::vector<std::string> strategy_names();
-std::unique_ptr<DirectionStrategy> make_strategy(const BuildOptions& options);
-
 // The method's BuildOptions with `values` (checked by the caller against the
 // specs' limits; here only names and types are checked) set by name.
 BuildOptions options_for(const MethodSpec& method,
                          const std::map<std::string, OptionValue>& values);
+
+// The tree of method `method` over `triangles` (moved into the tree), with
+// `values` set by option name as options_for() sets them: the one entry of
+// every build from outside. Throws std::invalid_argument for an unknown
+// method or option, and what the builder throws (builder.hpp).
+Tree build(const std::string& method, std::vector<Triangle> triangles,
+           const std::map<std::string, OptionValue>& values, Progress* progress);
 
 }  // namespace bsp

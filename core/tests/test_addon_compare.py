@@ -8,7 +8,7 @@ import pytest
 
 import bsplab
 from bsplab import scenes
-from bsplab.blender.camera import CameraSpec
+from bsplab.blender.scene_camera import CameraSpec
 from bsplab.render import heat_ramp
 
 from addon_without_blender import addon_module

@@ -17,7 +17,7 @@ import pytest
 
 import bsplab
 from bsplab import scenes
-from bsplab.blender.camera import CameraSpec
+from bsplab.blender.scene_camera import CameraSpec
 
 from addon_without_blender import addon_module as _addon_module
 
@@ -172,7 +172,7 @@ def test_plain_makes_results_json_friendly():
 def test_the_addon_reads_the_scene_with_the_core_packages_modules():
     """addon/camera.py and addon/extract.py hold no copy of the scene reading:
     their names are bsplab.blender's (bpy-free to import)."""
-    from bsplab.blender import camera, extract
+    from bsplab.blender import extract, scene_camera as camera
     addon_camera, addon_extract = _addon_module("camera"), _addon_module("extract")
     assert addon_camera.CameraSpec is camera.CameraSpec
     assert addon_camera.scene_camera is camera.scene_camera

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs Debian's qemu-user when qemu-x86_64 is missing (`make test-core`):
-# core/tests/test_isa_levels.py runs the module on an emulated CPU with only
+# core/tests/library/test_isa_levels.py runs the module on an emulated CPU with only
 # SSE2 (QEMU's qemu64 model) to prove the wheel runs on any x86-64.
 set -euo pipefail
 command -v qemu-x86_64 >/dev/null && exit 0

@@ -1,6 +1,6 @@
 """Per-ray instruction, branch and mispredict counts of the single-ray kernel
 on one shared scene, under callgrind (exact, unlike times on a shared
-machine). Used for the profiles in docs/architecture.md and docs/benchmark.md.
+machine). Used for the profiles in docs/performance.md and docs/benchmark.md.
 
     python core/tools/profile_trace.py bunny random [--method kd] [--isa avx2]
 

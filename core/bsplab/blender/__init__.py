@@ -1,7 +1,7 @@
 """The Blender side of BSP Lab: reading a scene out of Blender's data.
 
 `extract.scene_triangles` (the evaluated scene's world-space triangles) and
-`camera.scene_camera` (the scene camera as `bsplab.Camera` parameters) take
+`scene_camera.scene_camera` (the scene camera as `bsplab.Camera` parameters) take
 bpy objects but never import bpy, so `import bsplab.blender` works anywhere;
 they need only numpy and are written to run as plain modules too, because
 `export_scene.py` (a script Blender runs for `bsplab.io.load_blend`) loads

@@ -7,7 +7,7 @@ Blender process, or in a Python with the `bpy` module:
     blender -b scene.blend --python .../bsplab/blender/export_scene.py -- out.npz
     python .../bsplab/blender/export_scene.py -- out.npz scene.blend
 
-It uses extract.py and camera.py beside it, imported as plain modules: this
+It uses extract.py and scene_camera.py beside it, imported as plain modules: this
 Blender's Python need not be able to load the compiled core (`import bsplab`).
 The add-on uses the same two modules, so an experiment sees exactly the
 triangles and camera that Build & Render sees.
@@ -20,7 +20,7 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import camera  # noqa: E402  (bsplab/blender's modules, imported as plain modules)
+import scene_camera  # noqa: E402  (bsplab/blender's modules, imported as plain modules)
 import extract  # noqa: E402
 
 
@@ -35,8 +35,8 @@ def main(argv):
     geometry = extract.scene_triangles(depsgraph)
     out = {"triangles": geometry.triangles}
     try:
-        spec = camera.scene_camera(scene, depsgraph, 100)
-    except camera.CameraError as ex:
+        spec = scene_camera.scene_camera(scene, depsgraph, 100)
+    except scene_camera.CameraError as ex:
         out["camera_error"] = np.array(str(ex))
     else:
         for key, value in spec.kwargs().items():

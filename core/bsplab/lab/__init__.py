@@ -4,13 +4,13 @@ store, the one timing protocol, the reports, and the benchmarks as specs.
 The library (`bsplab` outside this package) never imports the lab: the lab
 is one user of the library among others (the add-on, scripts)."""
 
-from .cells import Cell, SceneData, cells, load_scene, run_cell
+from .trials import Trial, SceneData, trials, load_scene, run_trial
 from .runner import run
 from .spec import Spec, SpecError, load_spec, make_spec
 from .store import ROW_FIELDS, ResultsFile, read_rows
-from .sweep import sweep_k, sweep_table
+from .k_sweep import sweep_k, sweep_table
 from .timing import PairedTimes, Tracer, paired_rounds
 
-__all__ = ["Cell", "PairedTimes", "ROW_FIELDS", "ResultsFile", "SceneData", "Spec", "SpecError",
-           "Tracer", "cells", "load_scene", "load_spec", "make_spec", "paired_rounds",
-           "read_rows", "run", "run_cell", "sweep_k", "sweep_table"]
+__all__ = ["Trial", "PairedTimes", "ROW_FIELDS", "ResultsFile", "SceneData", "Spec", "SpecError",
+           "Tracer", "trials", "load_scene", "load_spec", "make_spec", "paired_rounds",
+           "read_rows", "run", "run_trial", "sweep_k", "sweep_table"]

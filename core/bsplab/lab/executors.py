@@ -1,11 +1,11 @@
-"""Where experiment cells run: in this process, in a local process pool (the
+"""Where experiment trials run: in this process, in a local process pool (the
 default), or on a Dask distributed cluster (an existing scheduler, or a
-local cluster started for the run). Every executor yields (cell, rows) as
-cells finish, in any order; the runner writes them down.
+local cluster started for the run). Every executor yields (trial, rows) as
+trials finish, in any order; the runner writes them down.
 
-An executor is given the function that runs one cell, `run_cell(spec, cell,
+An executor is given the function that runs one trial, `run_trial(spec, trial,
 scene_data=None, progress=None) -> rows` (for the pools, a module-level
-function, so that it pickles): it knows nothing of what a cell is."""
+function, so that it pickles): it knows nothing of what a trial is."""
 
 from __future__ import annotations
 
@@ -19,8 +19,8 @@ from .. import Cancelled
 CONNECT_SECONDS = 10
 
 
-def _run_cell(run_cell, spec, cell):
-    return cell, run_cell(spec, cell)
+def _run_trial(run_trial, spec, trial):
+    return trial, run_trial(spec, trial)
 
 
 def _check_cancel(progress) -> None:
@@ -29,16 +29,16 @@ def _check_cancel(progress) -> None:
 
 
 class InlineExecutor:
-    """In this process, one cell after another (the add-on, the tests)."""
+    """In this process, one trial after another (the add-on, the tests)."""
 
-    def __init__(self, run_cell):
-        self.run_cell = run_cell
+    def __init__(self, run_trial):
+        self.run_trial = run_trial
 
     def map(self, spec, todo, scene_data=None, progress=None):
-        for cell in todo:
+        for trial in todo:
             _check_cancel(progress)
-            data = scene_data.get(cell.scene) if scene_data else None
-            yield cell, self.run_cell(spec, cell, data, progress=progress)
+            data = scene_data.get(trial.scene) if scene_data else None
+            yield trial, self.run_trial(spec, trial, data, progress=progress)
 
     def close(self):
         pass
@@ -46,16 +46,16 @@ class InlineExecutor:
 
 class ProcessExecutor:
     """A local process pool. Each worker loads a scene once and keeps it while
-    its cells follow one another (cells are ordered by scene)."""
+    its trials follow one another (trials are ordered by scene)."""
 
-    def __init__(self, run_cell, workers: int):
-        self.run_cell = run_cell
+    def __init__(self, run_trial, workers: int):
+        self.run_trial = run_trial
         # spawn: the workers start clean, without the parent's threads.
         self.pool = cf.ProcessPoolExecutor(max_workers=workers,
                                            mp_context=multiprocessing.get_context("spawn"))
 
     def map(self, spec, todo, scene_data=None, progress=None):
-        futures = [self.pool.submit(_run_cell, self.run_cell, spec, c) for c in todo]
+        futures = [self.pool.submit(_run_trial, self.run_trial, spec, c) for c in todo]
         try:
             for f in cf.as_completed(futures):
                 yield f.result()
@@ -69,12 +69,12 @@ class ProcessExecutor:
 
 
 class DaskExecutor:
-    """Cells as tasks on a Dask distributed cluster: `scheduler` is the address
+    """Trials as tasks on a Dask distributed cluster: `scheduler` is the address
     of a running scheduler (workers need bsplab installed and the scene files
     at the same paths), or empty for a local cluster of `workers` processes."""
 
-    def __init__(self, run_cell, workers: int, scheduler: str = ""):
-        self.run_cell = run_cell
+    def __init__(self, run_trial, workers: int, scheduler: str = ""):
+        self.run_trial = run_trial
         try:
             from distributed import Client, LocalCluster
         except ImportError as e:
@@ -94,9 +94,9 @@ class DaskExecutor:
 
     def map(self, spec, todo, scene_data=None, progress=None):
         from distributed import as_completed
-        # pure=False: identical cells may run again on purpose (repetitions).
-        futures = [self.client.submit(_run_cell, self.run_cell, spec, c, pure=False,
-                                      key=f"cell-{i}-{c.key}")
+        # pure=False: identical trials may run again on purpose (repetitions).
+        futures = [self.client.submit(_run_trial, self.run_trial, spec, c, pure=False,
+                                      key=f"trial-{i}-{c.key}")
                    for i, c in enumerate(todo)]
         try:
             for f in as_completed(futures):
@@ -111,10 +111,10 @@ class DaskExecutor:
             self.cluster.close()
 
 
-def make(spec, run_cell, inline: bool = False):
+def make(spec, run_trial, inline: bool = False):
     """The executor `spec` asks for (`inline` forces this process)."""
     if inline or spec.executor == "inline":
-        return InlineExecutor(run_cell)
+        return InlineExecutor(run_trial)
     if spec.executor == "dask":
-        return DaskExecutor(run_cell, spec.workers, spec.scheduler)
-    return ProcessExecutor(run_cell, spec.workers)
+        return DaskExecutor(run_trial, spec.workers, spec.scheduler)
+    return ProcessExecutor(run_trial, spec.workers)

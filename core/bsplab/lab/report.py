@@ -6,7 +6,7 @@ and the documents of the benchmarks (`python -m bsplab bench`,
 `bench-family`, `bench-cull`, `calibrate`). Plots are in `plots.py`.
 
 Every time is first divided by Embree's time on the same rays measured right
-beside it in the same cell (a paired ratio, which cancels most of a shared
+beside it in the same trial (a paired ratio, which cancels most of a shared
 machine's drift), then by the kd-tree's median of the same ratio."""
 
 from __future__ import annotations
@@ -111,8 +111,8 @@ class Results:
 
     def pct_of_kd(self, g: Group) -> np.ndarray | None:
         """Render time as % of kd's, per repetition (the thesis's measure):
-        against the kd traces paired with ours in the same cell, or else
-        through Embree's paired times and the kd cell's median."""
+        against the kd traces paired with ours in the same trial, or else
+        through Embree's paired times and the kd trial's median."""
         paired = g.paired_with_kd()
         if paired is not None:
             return 100.0 * paired
@@ -138,7 +138,7 @@ def machine_lines(meta: dict | None) -> list[str]:
     if not meta:
         return []
     runs = meta.get("runs") or [{}]
-    # The last start that ran cells (a resumed run that only re-renders the
+    # The last start that ran trials (a resumed run that only re-renders the
     # page measured nothing: its load says nothing about the rows).
     run = next((r for r in reversed(runs)
                 if r.get("cells_after", 1) > r.get("cells_before", 0)), runs[-1])
@@ -222,9 +222,9 @@ def summary_tables(res: Results) -> list[str]:
     return out
 
 
-def _method_k_tables(res: Results, title, column_names, cells_of) -> list[str]:
+def _method_k_tables(res: Results, title, column_names, fields_of) -> list[str]:
     """Per method but kd: a table with rows K and, per scene, the columns
-    `column_names` filled by cells_of(group) (None: no such tree)."""
+    `column_names` filled by fields_of(group) (None: no such tree)."""
     out = []
     names = [scene_label(s) for s in res.scenes]
     for m in res.methods:
@@ -234,35 +234,35 @@ def _method_k_tables(res: Results, title, column_names, cells_of) -> list[str]:
                 "| K | " + " | ".join(f"{n} {c}" for n in names for c in column_names) + " |",
                 "|---:|" + "---:|" * (len(column_names) * len(names))]
         for k in res.ks(m):
-            cells = []
+            fields = []
             for s in res.scenes:
-                row = cells_of(s, m, k)
-                cells += ["—"] * len(column_names) if row is None else row
-            out.append(f"| {'' if k is None else k} | " + " | ".join(cells) + " |")
+                row = fields_of(s, m, k)
+                fields += ["—"] * len(column_names) if row is None else row
+            out.append(f"| {'' if k is None else k} | " + " | ".join(fields) + " |")
         out.append("")
     return out
 
 
 def thesis_tables(res: Results, workload: str) -> list[str]:
     """Tables 5.1-5.9: per method, rows K, columns scene x min/med/max (% of kd)."""
-    def cells(scene, method, k):
+    def fields(scene, method, k):
         g = res.get(scene, workload, method, k)
         p = res.pct_of_kd(g) if g else None
         return None if p is None else [f"{p.min():.1f}", f"{np.median(p):.1f}", f"{p.max():.1f}"]
     return _method_k_tables(res, f"render time as % of kd, {workload} rays",
-                            ("min", "med", "max"), cells)
+                            ("min", "med", "max"), fields)
 
 
 def node_tables(res: Results) -> list[str]:
     """Table 5.10: kd vs general (BSP) node counts per method and K."""
-    def cells(scene, method, k):
+    def fields(scene, method, k):
         g = res.get(scene, res.workloads[0], method, k)
         if g is None:
             return None
         a, b = int(g.mean("kd_nodes")), int(g.mean("general_nodes"))
         return [f"{a:,}", f"{b:,}", f"{a + b:,}"]
     return _method_k_tables(res, "interior nodes, Kd / BSP / total", ("Kd", "BSP", "total"),
-                            cells)
+                            fields)
 
 
 def markdown(rows: list[dict], title: str = "Experiment results", meta: dict | None = None,
@@ -387,7 +387,7 @@ TRACE_PATHS = tuple((f"{p}_s", p.replace("_", "-")) for p in HITS_ONLY_PATHS) + 
     ("trace_s", "counters"),)
 
 
-def _speed_cell(g: Group, column: str, bold: bool) -> str:
+def _speed_field(g: Group, column: str, bold: bool) -> str:
     """`× Embree speed` of one path: the median of Embree's time over the
     path's, round by round, and the spread over the rounds."""
     x = g.per_round("embree_s", column)
@@ -416,16 +416,16 @@ def _trace_table(res: Results, w: str) -> list[str]:
            head + " steps/ray | tests/ray | wrong hits | grazing |",
            "|---|---|---:|---:|---:|" + "---:|---:|" * len(paths) + "---:|---:|---:|---:|"]
     for g in groups:
-        cells = [scene_label(g.scene), g.method, "" if g.k is None else str(g.k),
+        fields = [scene_label(g.scene), g.method, "" if g.k is None else str(g.k),
                  f"{int(g.rows[0]['rays']):,}", _f(_mrays(g, "embree_s"), "{:.2f}")]
         for i, (column, _) in enumerate(paths):
             # Bold: the first path shown, hits-only single rays where measured
             # (the figure the issue's targets are about), else the counters'.
-            cells += [_f(_mrays(g, column), "{:.2f}"), _speed_cell(g, column, i == 0)]
+            fields += [_f(_mrays(g, column), "{:.2f}"), _speed_field(g, column, i == 0)]
         grazing = sum(int(r["grazing"]) for r in g.rows)
-        cells += [f"{g.mean('steps'):.1f}", f"{g.mean('tests'):.2f}", str(wrong_hits(g)),
+        fields += [f"{g.mean('steps'):.1f}", f"{g.mean('tests'):.2f}", str(wrong_hits(g)),
                   str(grazing)]
-        out.append("| " + " | ".join(cells) + " |")
+        out.append("| " + " | ".join(fields) + " |")
     return out
 
 

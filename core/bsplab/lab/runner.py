@@ -1,6 +1,6 @@
-"""The experiment runner: a spec expands into cells (`cells.cells`), an
-executor runs the cells not yet in the results file (`cells.run_cell`), and
-the rows go to the results store as cells finish."""
+"""The experiment runner: a spec expands into trials (`trials.trials`), an
+executor runs the trials not yet in the results file (`trials.run_trial`), and
+the rows go to the results store as trials finish."""
 
 from __future__ import annotations
 
@@ -9,14 +9,14 @@ import time
 from typing import Callable
 
 from . import executors
-from .cells import cells, run_cell
+from .trials import trials, run_trial
 from .spec import Spec
 from .store import ResultsFile
 
 
 class _Bar:
-    """Cells done, the current cell and the time left on stderr: a tqdm bar
-    where tqdm is installed, else one line per cell (Blender's Python may
+    """Trials done, the current trial and the time left on stderr: a tqdm bar
+    where tqdm is installed, else one line per trial (Blender's Python may
     lack tqdm; the add-on runs quiet anyway)."""
 
     def __init__(self, total: int, done: int, note: str):
@@ -26,8 +26,8 @@ class _Bar:
             tqdm = None
         self.bar = None
         if tqdm is not None:
-            self.bar = tqdm(total=total, initial=done, unit="cell", dynamic_ncols=True,
-                            bar_format="{n_fmt}/{total_fmt} cells |{bar}| "
+            self.bar = tqdm(total=total, initial=done, unit="trial", dynamic_ncols=True,
+                            bar_format="{n_fmt}/{total_fmt} trials |{bar}| "
                                        "[{elapsed}<{remaining}] {desc}")
         self.update(0, note)
 
@@ -47,30 +47,30 @@ class _Bar:
 def run(spec: Spec, out, *, fresh: bool = False, executor=None,
         on_progress: Callable[[int, int, str], None] | None = None,
         scene_data: dict | None = None, progress=None, quiet: bool = False) -> list[dict]:
-    """Runs every cell not yet in `out`; returns all rows (old and new).
+    """Runs every trial not yet in `out`; returns all rows (old and new).
 
     `scene_data` maps scene names to in-memory SceneData (the add-on's
     scene), which forces the inline executor. `progress` (a bsplab.Progress)
-    lets another thread cancel between and inside cells."""
+    lets another thread cancel between and inside trials."""
     results = ResultsFile(out, spec, fresh=fresh)
     finished = results.done()
-    everything = cells(spec)
+    everything = trials(spec)
     todo = [c for c in everything if c.key not in finished]
     total = len(everything)
     done = total - len(todo)
     if executor is None:  # before the bar: a scheduler it cannot reach is said plainly
-        executor = executors.make(spec, run_cell, inline=scene_data is not None)
-    bar = None if quiet else _Bar(total, done, f"{done} cells already in {results.csv}"
+        executor = executors.make(spec, run_trial, inline=scene_data is not None)
+    bar = None if quiet else _Bar(total, done, f"{done} trials already in {results.csv}"
                                   if done else "starting")
     start = time.perf_counter()
     try:
-        for cell, rows in executor.map(spec, todo, scene_data=scene_data, progress=progress):
+        for trial, rows in executor.map(spec, todo, scene_data=scene_data, progress=progress):
             results.add(rows)
             done += 1
             if bar:
-                bar.update(1, cell.label())
+                bar.update(1, trial.label())
             if on_progress:
-                on_progress(done, total, cell.label())
+                on_progress(done, total, trial.label())
     finally:
         if bar:
             bar.close()

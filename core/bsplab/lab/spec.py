@@ -42,11 +42,11 @@ class Spec:
     options: dict = field(default_factory=dict)  # build options for every method
     build_threads: int = 0        # 0: all cores
     executor: str = "process"
-    workers: int = 1              # parallel cells (more than 1 disturbs the timings)
+    workers: int = 1              # parallel trials (more than 1 disturbs the timings)
     scheduler: str = ""           # dask: a running scheduler's address; "": local cluster
     # Keys the benchmarks brought (left out of the fingerprint at their
     # defaults, so older results files still resume):
-    variants: list = field(default_factory=lambda: [{}])  # option tables crossed with cells
+    variants: list = field(default_factory=lambda: [{}])  # option tables crossed with trials
     method_variants: dict = field(default_factory=dict)   # per-method variants replacing them
     random_rays: int = 65_536     # rays of the `random` workload
     cull: bool = False            # also trace each tree with leaf culling on, paired
@@ -76,7 +76,7 @@ class Spec:
 
 
 def variant_key(options: dict) -> str:
-    """A variant's canonical text ("" for no options): cell keys and rows hold it."""
+    """A variant's canonical text ("" for no options): trial keys and rows hold it."""
     return json.dumps(options, sort_keys=True) if options else ""
 
 
@@ -117,7 +117,7 @@ def _int_list(value, key: str) -> list[int]:
 
 
 def _no_repeats(values, key: str) -> None:
-    """A value listed twice would make the same cell twice."""
+    """A value listed twice would make the same trial twice."""
     seen = set()
     for v in values:
         if v in seen:
@@ -308,7 +308,7 @@ def _variants(value, key: str) -> list[dict]:
 
 
 def _check_options(spec: Spec) -> None:
-    """Build options are checked by the core's own checks, per method and variant."""
+    """Build options are checked by the library's own checks (bsplab.checks), per method and variant."""
     from .. import checks
     known = set().union(*(set(METHODS[x].params) for x in spec.methods))
     for m in spec.methods:
@@ -325,7 +325,7 @@ def _check_options(spec: Spec) -> None:
 
 
 def build_options(spec: Spec, method: str, k=None, seed=None, variant: str = "") -> dict:
-    """The options `bsplab.build` gets for one cell: the spec's, the variant's,
+    """The options `bsplab.build` gets for one trial: the spec's, the variant's,
     K and the seed, each kept only where the method takes it."""
     given = {**spec.options, **(json.loads(variant) if variant else {})}
     opts = {key: v for key, v in given.items() if key in METHODS[method].params}

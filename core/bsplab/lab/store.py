@@ -1,7 +1,7 @@
-"""The results store: rows in `<out>.csv` as cells finish, and beside them
+"""The results store: rows in `<out>.csv` as trials finish, and beside them
 `<out>.json` recording the spec, its fingerprint and every (re)start of the
 run with the machine and the versions. A rerun with the same spec resumes:
-the cells already there are skipped."""
+the trials already there are skipped."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cells import Cell
+from .trials import Trial
 from .spec import Spec, SpecError
 from .tracers import HITS_ONLY_PATHS
 
@@ -88,8 +88,8 @@ class ResultsFile:
                 reader = csv.DictReader(f)
                 rows = list(reader)
                 header = reader.fieldnames or []
-            # A run killed mid-write leaves a cut last line or a cell with some
-            # of its workloads: drop those rows, the cell runs again.
+            # A run killed mid-write leaves a cut last line or a trial with some
+            # of its workloads: drop those rows, the trial runs again.
             self.rows = [r for r in rows if all(r.get(k) is not None for k in header)]
             complete = self.done()
             self.rows = [{k: r.get(k, "") for k in ROW_FIELDS} for r in self.rows
@@ -127,7 +127,7 @@ class ResultsFile:
 
     @staticmethod
     def _key(r: dict) -> str:
-        return Cell(r["scene"], r["method"], int(r["k"]) if r["k"] else None, int(r["seed"]),
+        return Trial(r["scene"], r["method"], int(r["k"]) if r["k"] else None, int(r["seed"]),
                     r.get("variant") or "").key
 
     def _rewrite(self) -> None:

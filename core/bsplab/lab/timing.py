@@ -72,7 +72,7 @@ def paired_rounds(tracers: dict[str, Tracer], rounds: int,
 
 
 def format_times(seconds: list[float]) -> str:
-    """The rounds' times as a results file's cell holds them."""
+    """The rounds' times as a results file's trial holds them."""
     return " ".join(f"{x:.6g}" for x in seconds)
 
 

@@ -1,5 +1,5 @@
-"""What a cell times side by side in `timing.paired_rounds`, one thread each:
-the cell's tree on the counting path (the lab's steps and tests per ray come
+"""What a trial times side by side in `timing.paired_rounds`, one thread each:
+the trial's tree on the counting path (the lab's steps and tests per ray come
 from it), the scene's kd-tree, Embree, and on request the same tree with leaf
 culling on and on its hits-only paths.
 
@@ -21,7 +21,7 @@ from .timing import Tracer
 
 @dataclass(frozen=True)
 class Rays:
-    """One workload's rays, as every tracer of a cell gets them."""
+    """One workload's rays, as every tracer of a trial gets them."""
     workload: str
     origins: np.ndarray
     directions: np.ndarray
@@ -32,7 +32,7 @@ class Rays:
 # times) and `<name>_unexplained` (rays whose answer differs from Embree's).
 HITS_ONLY_PATHS = ("hits_only", "packets")
 
-# A factory makes a path's tracer for one cell and workload. Its run() must
+# A factory makes a path's tracer for one trial and workload. Its run() must
 # return t, prim, u, v in the order of `rays` (they are checked against
 # Embree's ray by ray); a path that wants the rays in another order reorders
 # its own copy when the factory runs, outside the timed call.
@@ -65,15 +65,15 @@ HITS_ONLY_TRACERS: dict[str, dict[str, TracerFactory]] = {
 }
 
 
-def cell_tracers(tree, kd, embree, spec: Spec, rays: Rays) -> dict[str, Tracer]:
-    """The cell's tree and its references on the same rays, one thread each:
+def trial_tracers(tree, kd, embree, spec: Spec, rays: Rays) -> dict[str, Tracer]:
+    """The trial's tree and its references on the same rays, one thread each:
     `ours` (the counting path), `kd` (unless the tree is the kd reference),
     `embree` (where it runs), `culled` (spec.cull) and the workload's
     hits-only paths (spec.hits_only)."""
     o, d, tmax = rays.origins, rays.directions, rays.tmax
     etmax = None if np.isinf(tmax) else tmax
     out = {"ours": Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1))}
-    if kd is not tree:  # the kd cell's own times are its kd times
+    if kd is not tree:  # the kd trial's own times are its kd times
         out["kd"] = Tracer(lambda: kd.intersect(o, d, tmax=tmax, threads=1))
     if embree:
         out["embree"] = Tracer(lambda: embree.intersect(o, d, tmax=etmax),

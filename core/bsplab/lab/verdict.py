@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cells import load_scene, scene_references
+from .trials import load_scene, scene_references
 from .spec import Spec, build_options, load_spec
 from .store import load_average, machine_info
 from .timing import Tracer, paired_rounds

@@ -1,0 +1,33 @@
+// What a build and a trace share as jobs: progress, cancellation, and the
+// errors that stop them.
+#include <nanobind/nanobind.h>
+
+#include "bindings/bindings.hpp"
+#include "build/memory.hpp"
+#include "progress.hpp"
+
+namespace bsp::bindings {
+
+namespace nb = nanobind;
+
+void bind_jobs(nb::module_& m) {
+    nb::exception<Cancelled>(m, "Cancelled", PyExc_RuntimeError);
+    // Over memory_limit_mb: a MemoryError that says what the build needed.
+    nb::register_exception_translator([](const std::exception_ptr& p, void*) {
+        try {
+            std::rethrow_exception(p);
+        } catch (const MemoryLimitExceeded& e) {
+            PyErr_SetString(PyExc_MemoryError, e.what());
+        }
+    });
+
+    nb::class_<Progress>(m, "Progress", "Progress of a build or trace; cancel() from any thread.")
+        .def(nb::init<>())
+        .def_prop_ro("value", &Progress::value, "Fraction done, 0..1.")
+        .def_prop_ro("cancelled", &Progress::cancelled)
+        .def("cancel", &Progress::cancel, "Ask the running work to stop.")
+        .def("reset", &Progress::reset,
+             "Ready for the next job: value back to 0 and any cancel cleared.");
+}
+
+}  // namespace bsp::bindings

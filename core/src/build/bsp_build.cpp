@@ -1,0 +1,609 @@
+// Each node keeps, for every triangle reference, the triangle clipped to the
+// node's cell (a convex polygon; the whole triangle until a plane cuts it),
+// so extents along any direction are exact and a triangle is split only by
+// the planes that actually cross it. Cells are convex polyhedra (cell.hpp);
+// their areas below and above a moving plane are tabulated per direction.
+#include "build/bsp_build.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <future>
+#include <memory>
+
+#include "build/build_tree.hpp"
+#include "build/cell.hpp"
+#include "build/cost_model.hpp"
+#include "build/strategies/directions.hpp"
+#include "build/strategies/strategy.hpp"
+#include "parallel.hpp"
+
+namespace bsp {
+namespace {
+
+// A reference: triangle `tri`, clipped to the cell as pool[first, first+count)
+// or, with count == 0, not clipped at all.
+struct Ref {
+    uint32_t tri, first, count;
+};
+
+struct NodeRefs {
+    std::vector<Ref> refs;
+    std::vector<Vec3> pool;
+    Charge charge;  // both arrays' bytes in the memory budget
+};
+
+// The one projection every decision uses: sweep counts and classification
+// must see bit-identical values. For an axis it is the coordinate itself.
+inline float proj(const Vec3& u, const Vec3& p) { return u.x * p.x + u.y * p.y + u.z * p.z; }
+
+struct Candidate {
+    Vec3 dir;
+    float pos = 0;
+    bool planar_left = false;
+    bool kd = false;  // stored as a kd node
+    float cost = kInf;
+    uint32_t n_left = 0, n_right = 0;
+};
+
+struct SweepResult {
+    Candidate best;      // under the cost model's step()
+    Candidate fallback;  // ^Kd: general splits at its fallback_step()
+};
+
+// Nodes with more triangles than this sweep their directions in parallel.
+constexpr size_t kParallelDirections = 8192;
+
+// The depth of the stack walking BSP_IZE's per-node BVH: a subtree that
+// would overflow it is counted reference by reference instead.
+constexpr int kRefBvhStack = 128;
+
+// BSP_IZE's per-node BVH over the references: a box, a centre, an order slot
+// and about half a BVH node per reference.
+constexpr uint64_t kIzeBytesPerRef = 2 * sizeof(Box) + sizeof(Vec3) + sizeof(uint32_t);
+
+class BspBuilder : BuilderBase {
+public:
+    BspBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
+               int threads, MemoryBudget& memory)
+        : BuilderBase(tris, opt, progress, threads, memory) {
+        // A general plane's crossing is computed as (d - n.o) / (n.dir) in
+        // float, off by a few ulps of the coordinates; two planes with almost
+        // equal normals can even swap order along a ray. References are
+        // therefore classified against non-axis planes with extents fattened
+        // by more than that error, so a triangle within it of a plane sits on
+        // both sides. Axis planes are exact (the crossing is monotonic in the
+        // plane position), as in the kd-tree, and need no fattening.
+        eps_ = robust_epsilon(tris);
+        strategy_ = make_strategy(opt);
+    }
+
+    // `credit`: the memory budget of the build task (thread) running this node.
+    std::unique_ptr<BuildNode> build(NodeRefs refs, Cell cell, int depth, double budget,
+                                     uint64_t id, TaskCredit& credit) {
+        check_stop();
+        const size_t n = refs.refs.size();
+        const double area = cell.area();
+        if (int(n) <= opt_.leaf_size || depth >= opt_.max_depth || !(area > 0))
+            return leaf(refs, area, depth, credit);
+
+        // The node's scratch space while it looks for a plane: its triangle
+        // ids, the sweeps' position arrays (per thread), BSP_IZE's reference BVH.
+        Charge scratch(credit,
+                       uint64_t(n) * (sizeof(uint32_t) + 3 * sizeof(float) * uint64_t(threads_) +
+                                      (strategy_->tries_triangle_planes() ? kIzeBytesPerRef : 0)),
+                       depth, "a node's sweep buffers");
+        Rng rng(Rng::mix(opt_.seed, id));
+        std::vector<Vec3> dirs;
+        {
+            // Freed before the children are built: recursion would hold it per level.
+            std::vector<uint32_t> tri_ids(n);
+            for (size_t i = 0; i < n; ++i) tri_ids[i] = refs.refs[i].tri;
+            node_directions(*strategy_, opt_, tris_, tri_ids.data(), n, rng, dirs);
+        }
+
+        SweepResult total;
+        std::vector<SweepResult> per_dir(dirs.size());
+        auto sweep_range = [&](size_t b, size_t e) {
+            for (size_t j = b; j < e; ++j) per_dir[j] = sweep(refs, cell, area, dirs[j]);
+        };
+        if (threads_ > 1 && n > kParallelDirections) parallel_for(dirs.size(), 1, threads_, sweep_range);
+        else sweep_range(0, dirs.size());
+        for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
+        if (strategy_->tries_triangle_planes()) merge(total, ize_planes(refs, cell, area, rng));
+
+        const float leaf_cost = cost_.leaf(n);
+        Candidate s = total.best;
+        if (!(s.cost < leaf_cost)) s = total.fallback;  // Ize et al.'s retry at a constant cost
+        if (!(s.cost < leaf_cost)) return leaf(refs, area, depth, credit);
+        const double total_refs = double(s.n_left) + double(s.n_right);
+        if (total_refs > budget) return leaf(refs, area, depth, credit);
+
+        // The children's references are charged before they are made, their
+        // clipped polygons (whose size the split decides) as soon as they are.
+        scratch.reset();
+        NodeRefs left, right;
+        {
+            Charge work(credit, sizeof(Ref) * (uint64_t(s.n_left) + s.n_right) + kBuildNodeBytes,
+                        depth, "the children's references");
+            left.charge = work.take(sizeof(Ref) * s.n_left);
+            right.charge = work.take(sizeof(Ref) * s.n_right);
+            work.keep();  // this node
+        }
+        left.refs.reserve(s.n_left);
+        right.refs.reserve(s.n_right);
+        split_refs(refs, s, left, right);
+        refs = NodeRefs();  // the children have their own copies now
+        {
+            // What the children hold beyond their charged references.
+            auto owed = [](const NodeRefs& r) {
+                const uint64_t held =
+                    r.refs.capacity() * sizeof(Ref) + r.pool.capacity() * sizeof(Vec3);
+                return held > r.charge.bytes() ? held - r.charge.bytes() : 0;
+            };
+            const uint64_t lpool = owed(left);
+            Charge pools(credit, lpool + owed(right), depth, "the clipped polygons");
+            left.charge.absorb(pools.take(lpool));
+            right.charge.absorb(std::move(pools));
+        }
+        Cell lcell, rcell;
+        cell.split(Vec3d(s.dir), double(s.pos), lcell, rcell);
+        cell = Cell();
+
+        auto node = std::make_unique<BuildNode>();
+        node->area = float(area);
+        int axis;
+        if (s.kd && is_axis(s.dir, axis)) {
+            node->kind = kd_kind(axis);
+            node->split = s.pos;
+        } else {
+            node->kind = NodeKind::General;
+            node->plane = {s.dir.x, s.dir.y, s.dir.z, s.pos};
+        }
+        double lbudget, rbudget;
+        split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
+        const uint64_t lid = Rng::mix(id, 1), rid = Rng::mix(id, 2);
+        if (spawns(depth, n)) {
+            auto right_task = std::async(std::launch::async, [&, r = std::move(right),
+                                                             c = std::move(rcell)]() mutable {
+                TaskCredit task_credit(memory_);
+                r.charge.move_to(task_credit);
+                return build(std::move(r), std::move(c), depth + 1, rbudget, rid, task_credit);
+            });
+            node->child[0] =
+                build(std::move(left), std::move(lcell), depth + 1, lbudget, lid, credit);
+            node->child[1] = right_task.get();
+        } else {
+            node->child[0] =
+                build(std::move(left), std::move(lcell), depth + 1, lbudget, lid, credit);
+            node->child[1] =
+                build(std::move(right), std::move(rcell), depth + 1, rbudget, rid, credit);
+        }
+        return node;
+    }
+
+private:
+    std::unique_ptr<DirectionStrategy> strategy_;
+    float eps_ = 0;  // the fattening of extents along non-axis directions
+
+    const Vec3* verts(const NodeRefs& nr, const Ref& r, uint32_t& count) const {
+        if (r.count == 0) {
+            count = 3;
+            return tris_[r.tri].v;
+        }
+        count = r.count;
+        return &nr.pool[r.first];
+    }
+
+    // The reference's extent along u, fattened by eps_ unless u is an axis.
+    void extent(const NodeRefs& nr, const Ref& r, const Vec3& u, bool axis, float& lo,
+                float& hi) const {
+        uint32_t c;
+        const Vec3* v = verts(nr, r, c);
+        lo = hi = proj(u, v[0]);
+        for (uint32_t i = 1; i < c; ++i) {
+            const float x = proj(u, v[i]);
+            lo = std::min(lo, x);
+            hi = std::max(hi, x);
+        }
+        if (!axis) lo -= eps_, hi += eps_;
+    }
+
+    std::unique_ptr<BuildNode> leaf(const NodeRefs& nr, double area, int depth,
+                                    TaskCredit& credit) const {
+        Charge(credit, leaf_bytes(opt_, nr.refs.size()), depth, "a leaf").keep();
+        auto node = std::make_unique<BuildNode>();
+        node->area = float(area);
+        std::vector<uint32_t> order(nr.refs.size());
+        for (size_t i = 0; i < order.size(); ++i) order[i] = uint32_t(i);
+        std::sort(order.begin(), order.end(),
+                  [&](uint32_t a, uint32_t b) { return nr.refs[a].tri < nr.refs[b].tri; });
+        for (uint32_t i : order) {
+            node->refs.push_back(nr.refs[i].tri);
+            if (opt_.leaf_boxes != LeafBoxes::Clipped) continue;
+            // The clipped polygon's box, padded like the fattened extents.
+            uint32_t c;
+            const Vec3* v = verts(nr, nr.refs[i], c);
+            Box b;
+            for (uint32_t j = 0; j < c; ++j) b.extend(v[j]);
+            const Vec3 pad(eps_, eps_, eps_);
+            node->ref_boxes.push_back({b.lo - pad, b.hi + pad});
+        }
+        report_leaf(progress_, depth);
+        return node;
+    }
+
+    static void merge(SweepResult& into, const SweepResult& r) {
+        if (r.best.cost < into.best.cost) into.best = r.best;
+        if (r.fallback.cost < into.fallback.cost) into.fallback = r.fallback;
+    }
+
+    // Offers one candidate plane (counts given) to the result: at the cost
+    // model's step, and under ^Kd a general plane at its fallback step too.
+    void offer(SweepResult& res, const Vec3& u, bool kd, float p, bool planar_left, uint32_t l,
+               uint32_t r, double below, double above, double inv_area, size_t n) const {
+        const double p_below = below * inv_area, p_above = above * inv_area;
+        const float cost = cost_.split(cost_.step(kd, n), p_below, l, p_above, r);
+        if (cost < res.best.cost) res.best = {u, p, planar_left, kd, cost, l, r};
+        if (cost_.has_fallback(kd)) {
+            const float fb = cost_.split(cost_.fallback_step(), p_below, l, p_above, r);
+            if (fb < res.fallback.cost) res.fallback = {u, p, planar_left, kd, fb, l, r};
+        }
+    }
+
+    // Whether a candidate with nl references below and nr above (those in
+    // the plane not yet counted) can beat the best so far or the fallback:
+    // if not, its areas need not be computed.
+    bool may_win(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr) const {
+        if (cost_.lower_bound(cost_.step(kd, n), nl, nr) < res.best.cost) return true;
+        return cost_.has_fallback(kd) &&
+               cost_.lower_bound(cost_.fallback_step(), nl, nr) < res.fallback.cost;
+    }
+
+    // A second bound, for candidates beyond one already priced (at least
+    // as many references below as above): the part of a convex cell below
+    // a plane grows as the plane rises, and so does its surface (each
+    // face's clipped area does), so p_below is at least the p_below_min of
+    // the last candidate priced. With p_below + p_above >= 1 the weighted
+    // count is then at least p_below_min nl + (1 - p_below_min) nr when
+    // nl >= nr. 1e-7 of each probability absorbs the areas' rounding (about
+    // 1e-14 of the cell's), and the cost's float arithmetic is monotone, so
+    // no candidate skipped here could have won.
+    bool may_win_beyond(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr,
+                        double p_below_min) const {
+        if (nl < nr) return true;  // the lower bound is nl: may_win's already
+        const double b = std::clamp(p_below_min, 0.0, 1.0);
+        constexpr double kMargin = 1e-7;
+        if (cost_.split(cost_.step(kd, n), b - kMargin, nl, 1.0 - b - kMargin, nr) <
+            res.best.cost)
+            return true;
+        return cost_.has_fallback(kd) &&
+               cost_.split(cost_.fallback_step(), b - kMargin, nl, 1.0 - b - kMargin, nr) <
+                   res.fallback.cost;
+    }
+
+    // Per-thread buffers: sweeps run millions of times on small nodes. The
+    // thread_local is found once per sweep, through this call kept out of
+    // line: in a shared library each use of one is a look-up
+    // (__tls_get_addr), and inlined the compiler repeated it at every
+    // push_back, 6 % of a build.
+    struct SweepScratch {
+        std::vector<float> starts, ends, planars;
+        CellProjection cp;
+    };
+    [[gnu::noinline]] static SweepScratch& sweep_scratch() {
+        thread_local SweepScratch scratch;
+        return scratch;
+    }
+
+    SweepResult sweep(const NodeRefs& nr, const Cell& cell, double area, const Vec3& u) const {
+        SweepResult res;
+        const size_t n = nr.refs.size();
+        SweepScratch& scratch = sweep_scratch();
+        auto& [starts, ends, planars, cp] = scratch;
+        starts.clear();
+        ends.clear();
+        planars.clear();
+        int axis;
+        const bool is_ax = is_axis(u, axis);
+        for (const Ref& r : nr.refs) {
+            float lo, hi;
+            extent(nr, r, u, is_ax, lo, hi);
+            if (lo == hi) {
+                planars.push_back(lo);
+            } else {
+                starts.push_back(lo);
+                ends.push_back(hi);
+            }
+        }
+        std::sort(starts.begin(), starts.end());
+        std::sort(ends.begin(), ends.end());
+        std::sort(planars.begin(), planars.end());
+
+        cp.project(cell, Vec3d(u));  // re-projected, it keeps its arrays
+        const double clo = cp.lo(), chi = cp.hi();
+        const bool kd = opt_.kd_nodes && is_ax;
+        const double inv_area = 1.0 / area;
+        // Few candidates: evaluate the areas directly; many: tabulate once.
+        if (2 * n > 2 * cp.breaks_estimate()) cp.tabulate();
+
+        uint32_t nl = 0, nr_ = uint32_t(n);
+        const bool monotone = cp.areas_monotone();
+        double p_below_min = 0;  // p_below of the last candidate priced
+        size_t is = 0, ie = 0, ip = 0;
+        while (is < starts.size() || ie < ends.size() || ip < planars.size()) {
+            float p = kInf;
+            if (is < starts.size()) p = std::min(p, starts[is]);
+            if (ie < ends.size()) p = std::min(p, ends[ie]);
+            if (ip < planars.size()) p = std::min(p, planars[ip]);
+            uint32_t ne = 0, np = 0, ns = 0;
+            while (ie < ends.size() && ends[ie] == p) ++ne, ++ie;
+            while (ip < planars.size() && planars[ip] == p) ++np, ++ip;
+            while (is < starts.size() && starts[is] == p) ++ns, ++is;
+            nr_ -= np + ne;
+            const bool inside = cp.cuts(double(p));
+            // On an axis, triangles lying in the cell's own face (walls,
+            // floors) can be cut off into a flat cell, as in the kd builder.
+            const bool at_lo = is_ax && np > 0 && double(p) == clo && chi > clo;
+            const bool at_hi = is_ax && np > 0 && double(p) == chi && chi > clo;
+            if ((inside || at_lo || at_hi) && may_win(res, kd, n, nl, nr_) &&
+                (!monotone || may_win_beyond(res, kd, n, nl, nr_, p_below_min))) {
+                double below, above;
+                cp.eval(double(p), below, above);
+                p_below_min = below * inv_area;
+                if (!at_hi) offer(res, u, kd, p, true, nl + np, nr_, below, above, inv_area, n);
+                if (np && !at_lo)
+                    offer(res, u, kd, p, false, nl, nr_ + np, below, above, inv_area, n);
+            }
+            nl += ns + np;
+        }
+        return res;
+    }
+
+    // BSP_IZE's extra candidates: for (at most ize_candidates) triangles of the
+    // node, the triangle's own plane and the three planes through its edges
+    // perpendicular to it. They are not swept; a bounding-volume hierarchy
+    // over the references counts each side in about O(sqrt n).
+    SweepResult ize_planes(const NodeRefs& nr, const Cell& cell, double area, Rng& rng) const;
+
+    void split_refs(const NodeRefs& nr, const Candidate& s, NodeRefs& left,
+                    NodeRefs& right) const {
+        const Vec3& u = s.dir;
+        int axis;
+        const bool is_ax = is_axis(u, axis);
+        std::vector<Vec3> below, above;
+        for (const Ref& r : nr.refs) {
+            float lo, hi;
+            extent(nr, r, u, is_ax, lo, hi);
+            int side;  // -1 left only, 1 right only, 0 both
+            if (lo == hi) side = (lo < s.pos || (lo == s.pos && s.planar_left)) ? -1 : 1;
+            else if (hi <= s.pos) side = -1;
+            else if (lo >= s.pos) side = 1;
+            else side = 0;
+            if (side != 0) {
+                copy_ref(nr, r, side < 0 ? left : right);
+                continue;
+            }
+            uint32_t c;
+            const Vec3* v = verts(nr, r, c);
+            split_polygon(v, c, u, s.pos, below, above);
+            // Rounding can empty a half of a polygon the plane really cuts:
+            // then the whole polygon stands in, which is merely conservative.
+            push_polygon(left, r.tri, below.size() >= 3 ? below.data() : v,
+                         below.size() >= 3 ? uint32_t(below.size()) : c);
+            push_polygon(right, r.tri, above.size() >= 3 ? above.data() : v,
+                         above.size() >= 3 ? uint32_t(above.size()) : c);
+        }
+    }
+
+    static void copy_ref(const NodeRefs& from, const Ref& r, NodeRefs& to) {
+        if (r.count == 0) {
+            to.refs.push_back(r);
+            return;
+        }
+        to.refs.push_back({r.tri, uint32_t(to.pool.size()), r.count});
+        to.pool.insert(to.pool.end(), from.pool.begin() + r.first,
+                       from.pool.begin() + r.first + r.count);
+    }
+
+    static void push_polygon(NodeRefs& to, uint32_t tri, const Vec3* v, uint32_t c) {
+        to.refs.push_back({tri, uint32_t(to.pool.size()), c});
+        to.pool.insert(to.pool.end(), v, v + c);
+    }
+
+    static void split_polygon(const Vec3* v, uint32_t c, const Vec3& u, float pos,
+                              std::vector<Vec3>& below, std::vector<Vec3>& above) {
+        below.clear();
+        above.clear();
+        for (uint32_t i = 0; i < c; ++i) {
+            const Vec3& a = v[i];
+            const Vec3& b = v[(i + 1) % c];
+            const float pa = proj(u, a), pb = proj(u, b);
+            if (pa <= pos) below.push_back(a);
+            if (pa >= pos) above.push_back(a);
+            if ((pa < pos && pb > pos) || (pa > pos && pb < pos)) {
+                // Interpolate in double; the new vertex lies on the plane.
+                const double t = (double(pos) - pa) / (double(pb) - pa);
+                const Vec3 x(float(a.x + (double(b.x) - a.x) * t), float(a.y + (double(b.y) - a.y) * t),
+                             float(a.z + (double(b.z) - a.z) * t));
+                below.push_back(x);
+                above.push_back(x);
+            }
+        }
+    }
+};
+
+// ---- BSP_IZE ---------------------------------------------------------------
+
+// A small BVH over the node's references: boxes of their clipped polygons.
+struct RefBvh {
+    struct Node {
+        Box box;
+        uint32_t begin, end;  // range in order[]
+        uint32_t child = 0;   // first child index (0: leaf)
+    };
+    std::vector<Node> nodes;
+    std::vector<uint32_t> order;
+};
+
+// Counts, for the plane u.x = d: references only below, only above, crossing,
+// and lying exactly in it - with the classification split_refs() applies.
+struct PlaneCount {
+    uint32_t below = 0, above = 0, both = 0, planar = 0;
+};
+
+SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double area,
+                                   Rng& rng) const {
+    SweepResult res;
+    const size_t n = nr.refs.size();
+    // Reference boxes and a median-split BVH over them.
+    std::vector<Box> boxes(n);
+    std::vector<Vec3> centre(n);
+    for (size_t i = 0; i < n; ++i) {
+        uint32_t c;
+        const Vec3* v = verts(nr, nr.refs[i], c);
+        for (uint32_t j = 0; j < c; ++j) boxes[i].extend(v[j]);
+        centre[i] = (boxes[i].lo + boxes[i].hi) * 0.5f;
+    }
+    RefBvh bvh;
+    bvh.order.resize(n);
+    for (size_t i = 0; i < n; ++i) bvh.order[i] = uint32_t(i);
+    bvh.nodes.push_back({Box(), 0, uint32_t(n)});
+    for (size_t k = 0; k < bvh.nodes.size(); ++k) {
+        RefBvh::Node& node = bvh.nodes[k];
+        Box b, cb;
+        for (uint32_t i = node.begin; i < node.end; ++i) {
+            b.extend(boxes[bvh.order[i]]);
+            cb.extend(centre[bvh.order[i]]);
+        }
+        bvh.nodes[k].box = b;
+        if (node.end - node.begin <= 4) continue;
+        const Vec3 ext = cb.hi - cb.lo;
+        const int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
+        const uint32_t mid = (node.begin + node.end) / 2;
+        std::nth_element(bvh.order.begin() + node.begin, bvh.order.begin() + mid,
+                         bvh.order.begin() + node.end, [&](uint32_t a, uint32_t c) {
+                             return centre[a][axis] < centre[c][axis];
+                         });
+        const uint32_t begin = node.begin, end = node.end;
+        bvh.nodes[k].child = uint32_t(bvh.nodes.size());
+        bvh.nodes.push_back({Box(), begin, mid});
+        bvh.nodes.push_back({Box(), mid, end});
+    }
+
+    auto count = [&](const Vec3& u, bool is_ax, float d) {
+        PlaneCount pc;
+        const Vec3d ud(u);
+        // Box projections are conservative by a relative margin, so a whole
+        // subtree is counted at once only when every reference in it is
+        // certainly on that side in the float projection split_refs() uses.
+        uint32_t stack[kRefBvhStack];
+        int top = 0;
+        stack[top++] = 0;
+        while (top) {
+            const RefBvh::Node& node = bvh.nodes[stack[--top]];
+            const Vec3d c(Vec3((node.box.lo + node.box.hi) * 0.5f));
+            const Vec3d e(Vec3((node.box.hi - node.box.lo) * 0.5f));
+            const double mid = dot(ud, c);
+            const double rad = std::fabs(ud.x) * e.x + std::fabs(ud.y) * e.y + std::fabs(ud.z) * e.z;
+            const double margin = 1e-5 * (std::fabs(mid) + rad) + 2.0 * eps_ + 1e-30;
+            if (mid + rad + margin < d) {
+                pc.below += node.end - node.begin;
+                continue;
+            }
+            if (mid - rad - margin > d) {
+                pc.above += node.end - node.begin;
+                continue;
+            }
+            if (node.child && top + 2 <= kRefBvhStack) {
+                stack[top++] = node.child;
+                stack[top++] = node.child + 1;
+                continue;
+            }
+            for (uint32_t i = node.begin; i < node.end; ++i) {
+                float lo, hi;
+                extent(nr, nr.refs[bvh.order[i]], u, is_ax, lo, hi);
+                if (lo == hi && lo == d) ++pc.planar;
+                else if (hi <= d) ++pc.below;
+                else if (lo >= d) ++pc.above;
+                else ++pc.both;
+            }
+        }
+        return pc;
+    };
+
+    const double inv_area = 1.0 / area;
+    CellProjection cp;  // re-projected per plane, its arrays kept
+    auto try_plane = [&](const Vec3& u, float d) {
+        cp.project(cell, Vec3d(u));
+        if (!cp.cuts(double(d))) return;
+        int axis;
+        const bool is_ax = is_axis(u, axis);
+        const bool kd = opt_.kd_nodes && is_ax;
+        const PlaneCount pc = count(u, is_ax, d);
+        double below, above;
+        cp.areas_at(double(d), below, above);
+        const uint32_t l = pc.below + pc.both, r = pc.above + pc.both;
+        // Planar references first join the left (as split_refs() with planar_left).
+        offer(res, u, kd, d, true, l + pc.planar, r, below, above, inv_area, n);
+        if (pc.planar) offer(res, u, kd, d, false, l, r + pc.planar, below, above, inv_area, n);
+    };
+
+    // Candidate triangles: all of them in small nodes, a seeded sample in big ones.
+    std::vector<uint32_t> pick;
+    if (n <= size_t(opt_.ize_candidates)) {
+        for (size_t i = 0; i < n; ++i) pick.push_back(uint32_t(i));
+    } else {
+        for (int j = 0; j < opt_.ize_candidates; ++j) pick.push_back(uint32_t(rng.below(n)));
+        std::sort(pick.begin(), pick.end());
+        pick.erase(std::unique(pick.begin(), pick.end()), pick.end());
+    }
+    for (uint32_t i : pick) {
+        const Triangle& t = tris_[nr.refs[i].tri];
+        const Vec3 nt = unit_normal(t);
+        // The triangle's own plane, placed just beyond either end of its
+        // (fattened) extent so the triangle itself lies wholly on one side.
+        int axis;
+        const float fat = is_axis(nt, axis) ? 0.0f : eps_;
+        float lo = proj(nt, t.v[0]), hi = lo;
+        for (int j = 1; j < 3; ++j) {
+            lo = std::min(lo, proj(nt, t.v[j]));
+            hi = std::max(hi, proj(nt, t.v[j]));
+        }
+        try_plane(nt, lo - fat);
+        if (hi + fat != lo - fat) try_plane(nt, hi + fat);
+        // The planes through each edge, perpendicular to the triangle: placed
+        // at the edge's outer end so the triangle is wholly inside.
+        for (int j = 0; j < 3; ++j) {
+            const Vec3& a = t.v[j];
+            const Vec3& b = t.v[(j + 1) % 3];
+            const Vec3& c = t.v[(j + 2) % 3];
+            const Vec3 raw = cross(b - a, nt);
+            if (raw.x == 0 && raw.y == 0 && raw.z == 0) continue;
+            const Vec3 ne = canonical(raw);
+            const float pa = proj(ne, a), pb = proj(ne, b), pc = proj(ne, c);
+            const float efat = is_axis(ne, axis) ? 0.0f : eps_;
+            try_plane(ne, pc < pa ? std::max(pa, pb) + efat : std::min(pa, pb) - efat);
+        }
+    }
+    return res;
+}
+
+}  // namespace
+
+Tree build_bsp_tree(std::vector<Triangle> triangles, const BuildOptions& options,
+                    Progress* progress) {
+    return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep,
+                                                          MemoryBudget& memory) {
+        TaskCredit credit(memory);
+        NodeRefs refs;
+        refs.charge = Charge(credit, sizeof(Ref) * prep.live.size(), 0, "the references");
+        refs.refs.reserve(prep.live.size());
+        for (uint32_t i : prep.live) refs.refs.push_back({i, 0, 0});
+        BspBuilder builder(tree.triangles, tree.options, progress,
+                           resolve_threads(options.threads), memory);
+        return builder.build(std::move(refs), Cell::from_box(tree.bounds), 0, prep.ref_budget,
+                             options.seed, credit);
+    });
+}
+
+}  // namespace bsp

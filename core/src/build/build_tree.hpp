@@ -1,0 +1,153 @@
+// What every builder shares: input preparation, the intermediate pointer
+// tree, and the finishing pass (statistics, flattening to the compact layout).
+#pragma once
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "build/cost_model.hpp"
+#include "build/memory.hpp"
+#include "progress.hpp"
+#include "tree.hpp"
+
+namespace bsp {
+
+struct BuildNode {
+    NodeKind kind = NodeKind::Leaf;
+    float split = 0;  // kd nodes: the plane's position along the axis
+    Plane plane{};  // general nodes: the plane n.x = d
+    float area = 0; // surface area of the node's cell (for the SAH cost stat)
+    std::unique_ptr<BuildNode> child[2];
+    std::vector<uint32_t> refs;
+    std::vector<Box> ref_boxes;  // LeafBoxes::Clipped: the clipped box of each reference
+};
+static_assert(kBuildNodeBytes >= sizeof(BuildNode) + 16, "a build node costs more than charged");
+
+// What a leaf with `count` references costs in the pointer tree.
+inline uint64_t leaf_bytes(const BuildOptions& opt, size_t count) {
+    const uint64_t per_ref =
+        sizeof(uint32_t) + (opt.leaf_boxes == LeafBoxes::Clipped ? sizeof(Box) : 0);
+    return kBuildNodeBytes + per_ref * count;
+}
+
+// The fattening of extents along non-axis planes and the padding of the
+// segment box in leaf culling: 2^-19 of the scene's largest coordinate, well
+// beyond the float error of a plane crossing or a segment end point.
+float robust_epsilon(const std::vector<Triangle>& triangles);
+
+struct Prepared {
+    std::vector<uint32_t> live;  // indices of the non-degenerate triangles
+    int depth_limit = 0;
+    double ref_budget = 0;       // references allowed in the whole tree
+};
+
+// Copies the options, counts degenerate triangles, sets bounds and limits.
+Prepared prepare(Tree& tree, const BuildOptions& options);
+
+// A tree degenerates - and stats.warnings says so - when
+//  * its largest leaf holds more than kBigLeafMin triangles and more than
+//    kBigLeafShare of the live triangles: every ray reaching it tests them all;
+//  * or, with more than kSmallTreeMin live triangles, the tree is small for the
+//    scene: its non-empty leaves hold more than kBigLeafMin triangles on
+//    average, or it stays shallower than a quarter of its depth limit.
+// Well-built SAH trees hold a few triangles per leaf and reach their depth limit.
+constexpr uint64_t kBigLeafMin = 64;
+constexpr double kBigLeafShare = 0.05;
+constexpr uint64_t kSmallTreeMin = 10000;
+std::vector<std::string> degeneracy_warnings(const BuildStats& stats);
+
+// Fills tree.stats from the pointer tree, flattens it into tree.nodes/refs/
+// planes, and enforces the memory limit on the finished tree and on the
+// flattening (MemoryLimitExceeded, before anything is flattened).
+void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget);
+
+// Subtrees go to parallel tasks down to this depth: a few more tasks than
+// cores, for balance. Every task builds the same nodes it would serially.
+inline int spawn_depth(int threads) {
+    int depth = 0;
+    while ((1 << depth) < threads) ++depth;
+    return threads > 1 ? depth + 2 : 0;
+}
+
+// ...and only a node of more than this many triangles: below it, starting a
+// thread costs more than building the subtree.
+constexpr size_t kMinSpawnTriangles = 4096;
+
+// What the node recursion of every builder reads - the triangles, the
+// options and their cost model, progress, threads, the memory budget - and
+// the two decisions they share: stop (cancelled, over budget) and spawn.
+class BuilderBase {
+public:
+    BuilderBase(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
+                int threads, MemoryBudget& memory)
+        : tris_(tris), opt_(opt), cost_(opt), progress_(progress), threads_(threads),
+          spawn_depth_(spawn_depth(threads)), memory_(memory) {}
+
+protected:
+    // Throws Cancelled or MemoryLimitExceeded when the build must stop.
+    void check_stop() const {
+        if (progress_) progress_->check();
+        memory_.check();
+    }
+
+    // True when a node at `depth` of `triangles` builds its right subtree on
+    // a task of its own.
+    bool spawns(int depth, size_t triangles) const {
+        return depth < spawn_depth_ && triangles > kMinSpawnTriangles;
+    }
+
+    const std::vector<Triangle>& tris_;
+    const BuildOptions& opt_;
+    const CostModel cost_;
+    Progress* progress_;
+    int threads_;
+    int spawn_depth_;
+    MemoryBudget& memory_;
+};
+
+// Each child may use the parent's reference budget in proportion to its
+// share, which bounds the tree's total references deterministically.
+inline void split_budget(double budget, double n_left, double n_right, double& left,
+                         double& right) {
+    left = std::floor(budget * n_left / (n_left + n_right));
+    right = budget - left;
+}
+
+// Frees a pointer tree, the subtrees down to spawn_depth(threads) on tasks
+// of their own: a kd tree of a million nodes took 60 ms to free one node
+// after the other, as long as a tenth of its build on two threads.
+void free_build_tree(std::unique_ptr<BuildNode> root, int threads);
+
+// Runs a builder: prepares the tree, lets build_root(tree, prepared, budget)
+// build the pointer tree over the live triangles (not called when there are
+// none), then fills the statistics, flattens, and times the whole build. The
+// memory budget starts with the triangles themselves.
+template <class BuildRoot>
+Tree run_builder(std::vector<Triangle> triangles, const BuildOptions& options,
+                 BuildRoot&& build_root) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Tree tree;
+    tree.triangles = std::move(triangles);
+    const Prepared prep = prepare(tree, options);
+    MemoryBudget budget(options.memory_limit_mb);
+    budget.charge(tree.triangles.capacity() * sizeof(Triangle) +
+                      prep.live.capacity() * sizeof(uint32_t),
+                  -1, "the triangles");
+    std::unique_ptr<BuildNode> root =
+        prep.live.empty() ? std::make_unique<BuildNode>() : build_root(tree, prep, budget);
+    finish(tree, *root, budget);
+    free_build_tree(std::move(root), options.threads);
+    tree.stats.peak_bytes = budget.peak();
+    tree.stats.build_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return tree;
+}
+
+// Adds a leaf's share to the build progress: a leaf at depth d completes
+// 2^-d of a binary tree, so the shares of all leaves sum to one.
+inline void report_leaf(Progress* progress, int depth) {
+    if (progress && depth < 52) progress->add(Progress::kScale >> depth);
+}
+
+}  // namespace bsp

@@ -1,0 +1,494 @@
+// The single-ray kernel: front-to-back traversal of kd and general nodes
+// with early exit (pbrt-v3 / Havran style), a small per-ray mailbox, and the
+// watertight triangle test. Included by kernels/trace_kernels.cpp only, inside
+// the namespace of one instruction-set level (BSPLAB_ISA_NS), with internal
+// linkage: every level gets its own copy, and none leaks into another.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <type_traits>
+
+#include "trace/traverse.hpp"
+#include "trace/triangle.hpp"
+#include "trace/kernels/leaf_simd.hpp"
+#include "trace/kernels/ray_coherence.hpp"
+#include "trace/kernels/tree_view.hpp"
+#include "trace/kernels/walk_start.hpp"
+
+#ifndef BSPLAB_ISA_NS
+#error "single_ray.hpp is compiled per instruction set: include it from trace_kernels.cpp"
+#endif
+
+namespace bsp::BSPLAB_ISA_NS {
+namespace {
+
+// A triangle referenced by several leaves is tested once per ray: a small
+// direct-mapped table of the last triangles tested. A collision only costs a
+// repeated test, never a wrong answer, because the closest hit is kept
+// whichever leaf found it.
+struct Mailbox {
+    static constexpr uint32_t kSize = 16;
+    uint32_t slot[kSize];
+    Mailbox() { std::fill(slot, slot + kSize, 0xFFFFFFFFu); }
+    bool seen(uint32_t prim) {
+        uint32_t& s = slot[prim & (kSize - 1)];
+        if (s == prim) return true;
+        s = prim;
+        return false;
+    }
+};
+
+// The closest hit so far. Of equally close hits (the same float t) the
+// smallest triangle index wins, on every path (counting or not, culling or
+// not, SIMD leaves, packets, any thread count), so which leaf finds a hit
+// first never changes the answer: two triangles sharing an edge the ray
+// meets exactly, or coinciding, give one answer everywhere.
+struct Closest {
+    float t;
+    int32_t prim = -1;
+    float u = 0, v = 0;
+    // The walk parameter beyond which no cell can hold a hit as close
+    // (walk_reach): the early exit's and the cull box's end.
+    float reach;
+
+    bool beaten_by(float t_new, uint32_t p) const {
+        return t_new < t || (t_new == t && int32_t(p) < prim);
+    }
+    void take(float t_new, uint32_t p, float u_new, float v_new, double t_e) {
+        t = t_new;
+        prim = int32_t(p);
+        u = u_new;
+        v = v_new;
+        reach = walk_reach(t_new, t_e);
+    }
+};
+
+// Clips the walk's range [s0, s1] to the box, every face's crossing widened
+// by its error bound (walk_start.hpp); false when the ray misses the box.
+bool clip_to_box(const Box& b, const float o[3], const float inv[3], const float d[3],
+                 const float org_err[3], float& s0, float& s1) {
+    for (int k = 0; k < 3; ++k) {
+        if (d[k] == 0.0f) {
+            if (o[k] < b.lo[k] || o[k] > b.hi[k]) return false;
+            continue;
+        }
+        float tn = (b.lo[k] - o[k]) * inv[k];
+        float tf = (b.hi[k] - o[k]) * inv[k];
+        if (tn > tf) std::swap(tn, tf);
+        tn -= org_err[k] + std::fabs(tn) * kCrossRel;
+        tf += org_err[k] + std::fabs(tf) * kCrossRel;
+        s0 = std::max(s0, tn);
+        s1 = std::min(s1, tf);
+        if (s0 > s1) return false;
+    }
+    return true;
+}
+
+struct StackEntry {
+    uint32_t node;
+    float tmin, tmax;
+};
+
+// The box of the ray's segment o + [t0, t1] d, padded so that no float error
+// of the end points (or of the traversal's plane crossings, which the
+// builders' fattening already bounds by tree.cull_pad / 2) can cull a hit.
+// An end point's error is relative to the terms it is summed from, |o| and
+// |t d|, not to the point itself: a ray from far away has |o| >> |o + t d|.
+struct SegmentBox {
+    float lo[3], hi[3];
+    void set(const float* org, const float* dir, float t0, float t1, float pad) {
+        const float tmag = std::max(std::fabs(t0), std::fabs(t1));
+        for (int k = 0; k < 3; ++k) {
+            const float a = org[k] + t0 * dir[k], b = org[k] + t1 * dir[k];
+            const float p =
+                pad + (std::fabs(org[k]) + tmag * std::fabs(dir[k])) * (1.0f / (1 << 20));
+            lo[k] = std::min(a, b) - p;
+            hi[k] = std::max(a, b) + p;
+        }
+    }
+    bool misses(const Box& b) const {
+        return b.lo.x > hi[0] || b.hi.x < lo[0] || b.lo.y > hi[1] || b.hi.y < lo[1] ||
+               b.lo.z > hi[2] || b.hi.z < lo[2];
+    }
+};
+
+// The counters are a compile-time policy of the traversal: CountEvery keeps
+// the heatmaps' and the statistics' counts of one ray, CountNothing is the
+// hits-only path, whose empty hooks leave no counting code behind. The hooks
+// say what the traversal does (a node visited over the walk's [s0, s1],
+// t = t_e + s, walk_start.hpp; a triangle
+// culled, skipped by the mailbox, tested, hit or missed), so that a policy
+// can also record the whole walk: trace_path.cpp's PathRecord does, for the
+// ray inspector, with this very loop.
+struct CountEvery {
+    uint32_t steps = 0, general_steps = 0, tests = 0, culled = 0;
+    void step(uint32_t /*node*/, float /*s0*/, float /*s1*/, double /*t_e*/) { ++steps; }
+    void general_step() { ++general_steps; }
+    void cull(uint32_t /*prim*/) { ++culled; }
+    void seen(uint32_t /*prim*/) {}
+    void test(uint32_t /*prim*/) { ++tests; }
+    void hit(float /*t*/) {}
+    void miss() {}
+    void store(const HitBatch& hits, size_t i) const {
+        hits.steps[i] = steps;
+        hits.general_steps[i] = general_steps;
+        hits.tests[i] = tests;
+        hits.culled[i] = culled;
+    }
+};
+
+struct CountNothing {
+    void step(uint32_t, float, float, double) {}
+    void general_step() {}
+    void cull(uint32_t) {}
+    void seen(uint32_t) {}
+    void test(uint32_t) {}
+    void hit(float) {}
+    void miss() {}
+    void store(const HitBatch&, size_t) const {}
+};
+
+// Leaves of this many triangles or more take the SIMD blocks on the
+// hits-only path. Smaller leaves - nearly all of a SAH tree's - stay scalar:
+// blocks for them ran fewer instructions (-4 % to -13 % of the trace,
+// callgrind) but took more time against Embree in paired rounds (primary
+// rays on sponza and sibenik -8 to -10 % with blocks from 2 triangles up,
+// -4 % from 5 up); from 8 up the shared scenes' kd trees time as before and
+// trees with big leaves (intersect_cost 0.3) trace random rays 10-19 %
+// faster (docs/performance.md has the figures).
+constexpr uint32_t kSimdLeafMin = 8;
+// Even where no leaf takes the blocks, their code in the traversal loop cost
+// the default kd trees (3 references per non-empty leaf) 1-4 % of their
+// speed; so only trees whose leaves are big on average get the
+// instantiation with blocks (trace_single_rays).
+constexpr float kSimdLeafMean = 6.0f;
+
+// The hits-only path's leaf: the edge functions of up to `L` triangles at
+// a time in SIMD (leaf_simd.hpp), then, for the lanes that pass, in leaf
+// order, the cull box, the plane distance and u, v as in intersect_triangle.
+// Every lane's arithmetic is the scalar test's, and the passing lanes meet
+// the running hit.t (strict <) and the shrinking segment box in the same
+// order as the scalar loop's triangles, so the closest hit, and which of
+// equally close triangles is kept (the first), are the scalar path's.
+//
+// No mailbox here. Re-testing a triangle that an earlier leaf of this ray
+// tested (and did not cull) cannot change the hit: if it hit then, hit.t has
+// been <= its t since, and the strict < rejects it now; if it missed, it
+// misses again, the same arithmetic giving the same edge functions and t
+// against a hit.t that has only shrunk. (A culled triangle never entered the
+// mailbox in the first place.) The block tests all its lanes anyway, so a
+// mailbox could only save the plane distance of a passing lane: it saved
+// 0.3 % of the instructions on bunny, sponza and conference and no time in
+// paired rounds, so this path goes without. (Smaller leaves keep the
+// scalar loop, mailbox included.)
+//
+// noinline (and flatten, so that the shared inline functions it calls are
+// still inlined, see trace_kernels.cpp): inlined, the blocks' code made the
+// rest of the traversal loop slower even where no leaf took them.
+template <uint32_t L, LeafBoxes kBoxes>
+__attribute__((noinline, flatten)) void intersect_leaf_hits_only(
+    const TreeView& tree, Node node, const uint32_t* list, uint32_t n_refs,
+    const ShearedRay& sray, const float org[3], const float dir[3], float t0, float t1,
+    float tmin, double t_e, Closest& hit) {
+    SegmentBox seg;
+    if constexpr (kBoxes != LeafBoxes::None)
+        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+    for (uint32_t first = 0; first < n_refs; first += L) {
+        const EdgeBlock<L> e =
+            edge_test_block<L>(sray, tree.tris, list + first, std::min(L, n_refs - first));
+        for (uint32_t lanes = e.passed; lanes; lanes &= lanes - 1) {
+            const uint32_t lane = uint32_t(__builtin_ctz(lanes));
+            const uint32_t p = list[first + lane];
+            if constexpr (kBoxes != LeafBoxes::None) {
+                const uint32_t box = kBoxes == LeafBoxes::Triangle ? p : node.first + first + lane;
+                if (seg.misses(tree.boxes[box])) continue;
+            }
+            const float t = float(ray_distance(tree.tris[p], sray));
+            if (!(t > tmin && hit.beaten_by(t, p))) continue;
+            const float inv = 1.0f / (e.U[lane] + e.V[lane] + e.W[lane]);
+            hit.take(t, p, e.V[lane] * inv, e.W[lane] * inv, t_e);
+            if constexpr (kBoxes != LeafBoxes::None)
+                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+        }
+    }
+}
+
+// Tests the triangles of leaf `index` (node `node`) over the ray's range
+// [t0, t1] in it, keeping the closest hit in `hit`. The counting path tests
+// one triangle at a time, so that its counts of tests and culls keep their
+// meaning; the hits-only path tests big leaves in SIMD blocks.
+template <LeafBoxes kBoxes, bool kSimdLeaves, class Counters>
+inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
+                           const float org[3], const float dir[3], float t0, float t1, float tmin,
+                           double t_e, Mailbox& mailbox, Closest& hit, Counters& count) {
+    const uint32_t n_refs = node.count();
+    const uint32_t* list =
+        n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
+    if constexpr (kSimdLeaves) {
+        static_assert(std::is_same_v<Counters, CountNothing>, "the counting path tests one by one");
+        if (n_refs >= kSimdLeafMin) {
+            intersect_leaf_hits_only<kWideLanes, kBoxes>(tree, node, list, n_refs, sray, org,
+                                                         dir, t0, t1, tmin, t_e, hit);
+            return;
+        }
+    }
+    SegmentBox seg;
+    if constexpr (kBoxes != LeafBoxes::None)
+        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+    for (uint32_t i = 0; i < n_refs; ++i) {
+        const uint32_t p = list[i];
+        if constexpr (kBoxes != LeafBoxes::None) {
+            // A culled triangle is not marked in the mailbox: it may
+            // still be hit in a later leaf that references it.
+            const Box& b = tree.boxes[kBoxes == LeafBoxes::Triangle ? p : node.first + i];
+            if (seg.misses(b)) {
+                count.cull(p);
+                continue;
+            }
+        }
+        if (mailbox.seen(p)) {
+            count.seen(p);
+            continue;
+        }
+        count.test(p);
+        TriangleHit th;
+        if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim)) {
+            count.hit(th.t);
+            hit.take(th.t, p, th.u, th.v, t_e);
+            if constexpr (kBoxes != LeafBoxes::None)
+                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+        } else {
+            count.miss();
+        }
+    }
+}
+
+// Pops the next cell of the stack that may still hold a hit as close as the
+// closest hit (whose walk parameter is at most `reach`); false when none is
+// left. A cell that starts beyond it cannot improve it. Cells deeper in the stack usually lie beyond it too, but
+// not always (a ray in a plane visits both sides over its whole range), so
+// the search goes on rather than stopping at the first such cell.
+// The check is needed here only: while the ray descends, neither its entry
+// distance t0 nor the closest hit changes.
+inline bool pop_cell(const StackEntry* stack, int& top, float reach, uint32_t& index, float& t0,
+                     float& t1) {
+    while (top > 0) {
+        const StackEntry& e = stack[--top];
+        if (!(reach < e.tmin)) {
+            index = e.node;
+            t0 = e.tmin;
+            t1 = e.tmax;
+            return true;
+        }
+    }
+    return false;
+}
+
+// One ray through the tree. kGeneral = false is the kd-only instantiation
+// for trees without general nodes (TreeView::has_general): every interior
+// node is then a kd node, and the general node's plane arithmetic and its
+// branch drop out of the hot loop. kPrefetchAbove: the loop for incoherent
+// rays (trace_single_rays).
+template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove,
+          class Counters>
+void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+               Closest& hit, Counters& count) {
+    hit.t = tmax;
+    // Plain arrays: the axis is a run-time index in the hot loop.
+    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
+    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
+    // The walk runs from the ray's entry into the scene box (walk_start.hpp):
+    // its t0, t1 and crossings are s = t - t_e; the hits keep the ray's t.
+    const WalkStart walk(tree.bounds, tree.two_scene_scale, ray_org, dir, idir);
+    const double t_e = walk.t_e;
+    const float* org = walk.org;
+    hit.reach = walk_reach(tmax, t_e);
+    float t0 = walk_lower(tmin, t_e), t1 = walk_upper(tmax, t_e);
+    if (!clip_to_box(tree.bounds, org, idir, dir, walk.org_err, t0, t1)) return;
+    float axis_err[3];
+    axis_crossing_errors(walk, t0, t1, axis_err);
+    // A far ray's triangle test starts there too (ShearedRay::t_offset,
+    // kFarTestSizes): the same watertight test, with the precision of a
+    // point inside the box.
+    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
+                          walk.test_t);
+    // Locals, so that the hot loop keeps them in registers.
+    const Node* nodes = tree.nodes;
+    const Plane* planes = tree.planes;
+    // A general plane's crossing is widened to [t - err, t + err] with
+    //   err = (cross_a + |t| cross_b) / |n.d|
+    // (walk_start.hpp says what the terms bound), an axis crossing - a kd
+    // node's - by axis_err[axis].
+    const float cross_a = walk.cross_a, cross_b = walk.cross_b;
+    Mailbox mailbox;
+    StackEntry stack[72];
+    int top = 0;
+    uint32_t index = 0;
+
+    for (;;) {
+        const Node node = nodes[index];
+        count.step(index, t0, t1, t_e);
+        if (kGeneral ? !node.is_leaf() : node.is_kd()) {
+            // Both kinds reduce to: where the ray crosses the plane, and
+            // which child it enters from. Before the crossing the ray is on
+            // the side it moves away from (the entry side), after it on the
+            // side it moves towards. Deciding by the direction's sign rather
+            // than by the origin's side keeps every case consistent,
+            // including rays parallel to the plane (t = +-inf) and rays lying
+            // in it (t = NaN: both sides).
+            float tplane, err;
+            bool down;  // the ray moves towards the child below the plane
+            uint32_t above_child;
+            if (!kGeneral || node.is_kd()) {
+                const int axis = node.axis();
+                tplane = (node.split - org[axis]) * idir[axis];
+                err = axis_err[axis];
+                down = std::signbit(dir[axis]);
+                above_child = node.kd_above();
+                // Incoherent rays: fetch the child above the plane now,
+                // whichever child the ray takes. The child below follows its
+                // parent (most often in the same cache line), the one above
+                // lies anywhere. The branches below mispredict about once a
+                // step on such rays, and the path the processor then really
+                // takes starts with a node already on its way (random rays
+                // about 4 % faster against Embree, median of the shared
+                // scenes; on camera rays, whose branches predict well, the
+                // extra fetch cost 1-7 %: docs/performance.md).
+                if constexpr (kPrefetchAbove) __builtin_prefetch(nodes + above_child);
+            } else {
+                count.general_step();
+                const Plane& p = planes[node.first];
+                const float no = p.nx * org[0] + p.ny * org[1] + p.nz * org[2];
+                const float nd = p.nx * dir[0] + p.ny * dir[1] + p.nz * dir[2];
+                const float inv_nd = 1.0f / nd;
+                tplane = (p.d - no) * inv_nd;
+                // Parallel to the plane (t = +-inf): on the origin's side for
+                // good, unless the origin lies within the error of the plane.
+                err = nd != 0.0f ? (cross_a + std::fabs(tplane) * cross_b) * std::fabs(inv_nd)
+                      : std::fabs(p.d - no) > cross_a ? 0.0f
+                                                      : std::numeric_limits<float>::quiet_NaN();
+                down = std::signbit(nd);
+                above_child = node.general_above();
+            }
+            const uint32_t entry = down ? above_child : index + 1;
+            const uint32_t exit = down ? index + 1 : above_child;
+            // The exact crossing lies in [t_lo, t_hi].
+            // Three cases (branches, not conditional moves: measured
+            // faster on coherent rays, whose branches predict well, and no
+            // slower on random rays, where they mispredict: selects put the
+            // crossing's arithmetic between one node's load and the next,
+            // while a branch lets the processor load ahead, rightly most of
+            // the time. A branchless step - the far entry always written,
+            // the stack top advanced by the "both" case, next node and t1
+            // by bit masks - traced primary rays at 0.2-0.4 of this speed
+            // and random rays at 0.9-1.0; docs/performance.md):
+            //   crossed before this cell (or behind the origin): the exit
+            //     child only, over the same [t0, t1];
+            //   crossed beyond this cell: the entry child only;
+            //   crossed inside it, or NaN (the ray lies in the plane, and
+            //     either side may hold its hit): the entry child now over
+            //     [t0, t_hi], the exit child later over [t_lo, t1].
+            // NaN needs no case of its own: both comparisons are false, and
+            // std::max(t0, NaN) is t0, std::min(t1, NaN) is t1, so both
+            // children get the whole range.
+            const float t_lo = tplane - err, t_hi = tplane + err;
+            if (t_hi < t0) {
+                index = exit;
+            } else if (t_lo > t1) {
+                index = entry;
+            } else {
+                // The far child is visited later, unless a hit ends the ray
+                // first: fetch its node meanwhile.
+                __builtin_prefetch(nodes + exit);
+                stack[top++] = {exit, std::max(t0, t_lo), t1};
+                index = entry;
+                t1 = std::min(t1, t_hi);
+            }
+            continue;
+        }
+        // Empty leaves (most leaves of a kd tree) have nothing to test.
+        if (node.count() != 0)
+            intersect_leaf<kBoxes, kSimdLeaves>(tree, node, index, sray, org, dir, t0, t1, tmin,
+                                                t_e, mailbox, hit, count);
+        // Early exit: pop_cell skips every cell that starts beyond the
+        // closest hit. (Not `hit.t <= t1` here: with widened crossings, and
+        // for rays in a plane, a cell still on the stack may start before
+        // this one ends.)
+        if (!pop_cell(stack, top, hit.reach, index, t0, t1)) break;
+    }
+}
+
+// The ray loop of one traversal kind (kGeneral, kSimdLeaves, kPrefetchAbove:
+// see trace_one and intersect_leaf).
+template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove, class Counters>
+void trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits, size_t begin,
+                size_t end) {
+    const double scale = view.scale, inv_scale = 1.0 / view.scale;
+    for (size_t i = begin; i < end; ++i) {
+        const float* o = rays.origins + 3 * i;
+        const float* d = rays.directions + 3 * i;
+        Closest c;
+        Counters count;
+        const float tmin = rays.tmin[i * rays.tmin_stride];
+        const float tmax = rays.tmax[i * rays.tmax_stride];
+        if (scale == 1.0) {
+            trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove>(view, Vec3(o[0], o[1], o[2]),
+                                                     Vec3(d[0], d[1], d[2]), tmin, tmax, c, count);
+        } else {
+            // Into the tree's scaled space: o and the range scale, d does not.
+            const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+            trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove>(view, so, Vec3(d[0], d[1], d[2]),
+                                                     float(tmin * scale), float(tmax * scale), c,
+                                                     count);
+            c.t = float(c.t * inv_scale);
+            if (!(c.t < tmax)) c.prim = -1;  // tmax * scale rounded up (or overflowed)
+        }
+        const bool hit = c.prim >= 0;
+        hits.t[i] = hit ? c.t : kInf;
+        hits.prim[i] = c.prim;
+        hits.u[i] = hit ? c.u : 0.0f;
+        hits.v[i] = hit ? c.v : 0.0f;
+        count.store(hits, i);
+    }
+}
+
+// The kd-only or general traversal (TreeView::has_general).
+template <LeafBoxes kBoxes, bool kSimdLeaves, bool kPrefetchAbove, class Counters>
+void trace_rays_of_tree(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                        size_t begin, size_t end) {
+    if (view.has_general)
+        trace_rays<kBoxes, true, kSimdLeaves, kPrefetchAbove, Counters>(view, rays, hits, begin,
+                                                                         end);
+    else
+        trace_rays<kBoxes, false, kSimdLeaves, kPrefetchAbove, Counters>(view, rays, hits, begin,
+                                                                          end);
+}
+
+// Traces rays [begin, end) one by one (see kernel_set.hpp), with the kd-only
+// traversal when the tree has no general node, and on the hits-only path
+// with SIMD leaf blocks when its leaves are big (kSimdLeafMean) and with the
+// far-child prefetch when the rays are incoherent (rays_are_coherent: the
+// prefetch pays on random rays and costs on camera rays). The counting path
+// keeps one loop: its counts are the same either way.
+template <LeafBoxes kBoxes, class Counters>
+void trace_single_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                       size_t begin, size_t end) {
+    if constexpr (std::is_same_v<Counters, CountNothing>) {
+        const bool simd = view.mean_leaf_refs >= kSimdLeafMean;
+        const bool coherent = rays_are_coherent(rays, begin, end);
+        if (simd && coherent)
+            trace_rays_of_tree<kBoxes, true, false, Counters>(view, rays, hits, begin, end);
+        else if (simd)
+            trace_rays_of_tree<kBoxes, true, true, Counters>(view, rays, hits, begin, end);
+        else if (coherent)
+            trace_rays_of_tree<kBoxes, false, false, Counters>(view, rays, hits, begin, end);
+        else
+            trace_rays_of_tree<kBoxes, false, true, Counters>(view, rays, hits, begin, end);
+    } else {
+        trace_rays_of_tree<kBoxes, false, false, Counters>(view, rays, hits, begin, end);
+    }
+}
+
+}  // namespace
+}  // namespace bsp::BSPLAB_ISA_NS

@@ -1,0 +1,139 @@
+#include "trace/trace_path.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "trace/kernels/tree_view.hpp"
+#include "trace/triangle.hpp"
+
+// The single-ray kernel itself, instantiated here at the baseline
+// instruction set with a policy that records its walk instead of counting
+// it: the path is intersect()'s by construction, not by a copy of its rules.
+// Like every instantiation of the kernel headers, it lives in a namespace of
+// its own with internal linkage (see kernels/trace_kernels.cpp).
+#define BSPLAB_ISA_NS path_walk
+#include "trace/kernels/single_ray.hpp"
+
+namespace bsp {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// The kernel's counter hooks (CountEvery in single_ray.hpp), recording each
+// visited node and each triangle reference of the visited leaves. A node's
+// depth is its parent's plus one: the parent was visited before it, and the
+// record keeps the depths of the children of every interior node it visits.
+class PathRecord {
+public:
+    explicit PathRecord(const Tree& tree) : tree_(tree) { depth_of_[0] = 0; }
+
+    // The walk's range [s0, s1] from t_e, back in the ray's t.
+    void step(uint32_t index, float s0, float s1, double t_e) {
+        const float t0 = float(t_e + s0), t1 = float(t_e + s1);
+        const Node& node = tree_.nodes[index];
+        const int32_t depth = depth_of_.at(index);
+        path_.steps.push_back({index, depth, uint8_t(node.kind()), t0, t1});
+        ++path_.n_steps;
+        if (node.is_leaf()) return;
+        depth_of_[index + 1] = depth + 1;
+        depth_of_[node.is_kd() ? node.kd_above() : node.general_above()] = depth + 1;
+    }
+    void general_step() { ++path_.n_general_steps; }
+    void cull(uint32_t prim) {
+        ++path_.n_culled;
+        record(prim, TestResult::Culled, kNaN);
+    }
+    void seen(uint32_t prim) { record(prim, TestResult::Seen, kNaN); }
+    void test(uint32_t prim) {
+        ++path_.n_tests;
+        tested_ = prim;
+    }
+    void hit(float t) { record(tested_, TestResult::Hit, t); }
+    void miss() { record(tested_, TestResult::Miss, kNaN); }
+
+    TracePath take(const path_walk::Closest& closest) {
+        path_.t = closest.t;
+        path_.prim = closest.prim;
+        path_.u = closest.u;
+        path_.v = closest.v;
+        return std::move(path_);
+    }
+
+private:
+    const Tree& tree_;
+    std::unordered_map<uint32_t, int32_t> depth_of_;
+    uint32_t tested_ = 0;
+    TracePath path_;
+
+    // A triangle belongs to the leaf visited last.
+    void record(uint32_t prim, TestResult result, float t) {
+        path_.tests.push_back({uint32_t(path_.steps.size() - 1), prim, result, t});
+    }
+};
+
+// The kernel's loop for this tree and culling mode, as trace_single_rays
+// picks it on the counting path.
+template <LeafBoxes kBoxes>
+void walk(const TreeView& view, const Vec3& o, const Vec3& d, float tmin, float tmax,
+          path_walk::Closest& closest, PathRecord& record) {
+    if (view.has_general)
+        path_walk::trace_one<kBoxes, true, false, false>(view, o, d, tmin, tmax, closest, record);
+    else
+        path_walk::trace_one<kBoxes, false, false, false>(view, o, d, tmin, tmax, closest, record);
+}
+
+TracePath record_path(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+                      bool cull) {
+    const TreeView view = make_tree_view(tree);
+    PathRecord record(tree);
+    path_walk::Closest closest;
+    switch (cull ? tree.options.leaf_boxes : LeafBoxes::None) {
+        case LeafBoxes::None: walk<LeafBoxes::None>(view, o, d, tmin, tmax, closest, record); break;
+        case LeafBoxes::Triangle:
+            walk<LeafBoxes::Triangle>(view, o, d, tmin, tmax, closest, record);
+            break;
+        case LeafBoxes::Clipped:
+            walk<LeafBoxes::Clipped>(view, o, d, tmin, tmax, closest, record);
+            break;
+    }
+    return record.take(closest);
+}
+
+// Distances of the scaled space back in world units, as the kernel's ray
+// loop does; a hit beyond tmax after unscaling is no hit.
+void unscale(TracePath& path, double scale, float tmax) {
+    const double inv = 1.0 / scale;
+    for (PathStep& s : path.steps) {
+        s.t0 *= inv;
+        s.t1 *= inv;
+    }
+    for (PathTest& t : path.tests)
+        if (t.result == TestResult::Hit) t.t = float(t.t * inv);
+    if (scale != 1.0) {
+        path.t = float(path.t * inv);
+        if (!(path.t < tmax)) path.prim = -1;
+    }
+}
+
+}  // namespace
+
+TracePath trace_path(const Tree& tree, const float o[3], const float d[3], float tmin, float tmax,
+                     bool cull) {
+    const double s = tree.scale;
+    const Vec3 dir(d[0], d[1], d[2]);
+    const Vec3 org = s == 1.0 ? Vec3(o[0], o[1], o[2])
+                              : Vec3(float(o[0] * s), float(o[1] * s), float(o[2] * s));
+    const float lo = s == 1.0 ? tmin : float(tmin * s), hi = s == 1.0 ? tmax : float(tmax * s);
+    TracePath path = record_path(tree, org, dir, lo, hi, cull);
+    unscale(path, s, tmax);
+    const bool hit = path.prim >= 0;
+    if (!hit) {
+        path.t = std::numeric_limits<float>::infinity();
+        path.u = path.v = 0.0f;
+    }
+    return path;
+}
+
+}  // namespace bsp

@@ -1,0 +1,76 @@
+// Batches of rays through a tree: checks the arguments, hands chunks of rays
+// to threads and each chunk to the kernel of the selected instruction set
+// (kernels/, cpu_dispatch.cpp).
+#include "trace/traverse.hpp"
+
+#include <bit>
+#include <stdexcept>
+
+#include "trace/cpu_dispatch.hpp"
+#include "parallel.hpp"
+
+namespace bsp {
+
+namespace {
+
+int counter_arrays(const HitBatch& hits) {
+    return (hits.steps != nullptr) + (hits.general_steps != nullptr) + (hits.tests != nullptr) +
+           (hits.culled != nullptr);
+}
+
+// Chunks of rays to threads, each chunk to the kernel. Chunks are a multiple
+// of every packet width, so a packet never straddles two chunks.
+void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatch& out,
+         int threads, Progress* progress) {
+    const TreeView view = make_tree_view(tree);
+    constexpr size_t kChunk = 1024;
+    const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
+    parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
+        if (progress) progress->check();
+        trace(view, rays, out, begin, end);
+        if (progress) progress->add(units_per_ray * (end - begin));
+    });
+}
+
+}  // namespace
+
+void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
+               Progress* progress) {
+    const int given = counter_arrays(hits);
+    if (given != 0 && given != 4)
+        throw std::invalid_argument("intersect: give all four counter arrays or none");
+    // One instantiation per box kind keeps the culling check out of the loop
+    // when off, one per counting policy keeps the counters out of the
+    // hits-only path.
+    const LeafBoxes boxes = cull ? tree.options.leaf_boxes : LeafBoxes::None;
+    run(selected_kernels().single_ray[given == 4][int(boxes)], tree, rays, hits, threads,
+        progress);
+}
+
+void intersect_packets(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,
+                       Progress* progress) {
+    if (counter_arrays(hits) != 0)
+        throw std::invalid_argument(
+            "intersect: packets trace hits only; the counters are single-ray quantities "
+            "(use counters=False with packets=True)");
+    run(selected_kernels().packets, tree, rays, hits, threads, progress);
+}
+
+bool rays_are_valid(const float* origins, const float* directions, size_t count) {
+    constexpr uint32_t kExponent = 0x7F800000u, kMagnitude = 0x7FFFFFFFu;
+    // Accumulated without branches, so that the loops vectorize.
+    uint32_t bad = 0;
+    for (size_t i = 0; i < 3 * count; ++i) {  // inf or NaN: every exponent bit set
+        bad |= uint32_t((std::bit_cast<uint32_t>(origins[i]) & kExponent) == kExponent);
+        bad |= uint32_t((std::bit_cast<uint32_t>(directions[i]) & kExponent) == kExponent);
+    }
+    for (size_t i = 0; i < 3 * count; i += 3) {  // +-0 in every component
+        const uint32_t any = std::bit_cast<uint32_t>(directions[i]) |
+                             std::bit_cast<uint32_t>(directions[i + 1]) |
+                             std::bit_cast<uint32_t>(directions[i + 2]);
+        bad |= uint32_t((any & kMagnitude) == 0);
+    }
+    return bad == 0;
+}
+
+}  // namespace bsp
