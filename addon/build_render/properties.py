@@ -104,7 +104,7 @@ class BSPLabSettings(bpy.types.PropertyGroup):
     )
 
     @property
-    def sweep(self):
+    def k_sweep_table(self):
         """The last Sweep K's table as a dict (empty before the first sweep)."""
         return _json_or_empty(self.sweep_json)
 

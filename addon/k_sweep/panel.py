@@ -27,7 +27,7 @@ class BSPLAB_PT_sweep(BSPLabSubPanel, bpy.types.Panel):
         col.prop(settings, "sweep_workload")
         if STATE.job is None:
             col.operator(BSPLAB_OT_sweep_k.bl_idname, icon='GRAPH')
-        table = settings.sweep
+        table = settings.k_sweep_table
         if not table.get("methods"):
             return
         scene = table.get("scene", {})

@@ -203,7 +203,7 @@ def tick():
             report["progress"].append(("sweep", round(time.time() - state["t0"], 2),
                                        round(job.fraction(), 3)))
             return 0.2
-        table = bpy.context.scene.bsplab.sweep
+        table = bpy.context.scene.bsplab.k_sweep_table
         report["sweep_trees"] = sum(len(m["points"]) for m in table.get("methods", []))
         report["sweep_seconds"] = round(time.time() - state["t0"], 2)
         image = bpy.data.images.get("BSP Lab Sweep K")

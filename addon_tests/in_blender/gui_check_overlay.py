@@ -194,7 +194,7 @@ def docs_screenshot():
     redraw(3)
     screen = screenshot("overlay_depth6")
     window, area, _ = view3d()
-    report["overlay_depth6_draw_calls"] = utils.load_addon().overlay.last_draw_calls
+    report["overlay_depth6_draw_calls"] = utils.load_addon().state.STATE.overlay_draw_calls
     if DOCS_IMAGE is not None and shutil.which("convert"):
         # The 3D view's area, scaled to half: a small PNG for the docs.
         top = window.height - (area.y + area.height)
@@ -306,7 +306,7 @@ def finished_draw_cost(props, prefix=""):
 def timed_redraws(props, kind, pairs, prefix=""):
     """Frame time with the overlay on and off, alternating `pairs` times,
     and the draw handler's median time per frame; into the report."""
-    seconds = utils.load_addon().overlay.draw_seconds
+    seconds = utils.load_addon().state.STATE.overlay_draw_seconds
     frame = {True: [], False: []}
     for show in (True, False) * pairs:
         props.show = show
@@ -331,7 +331,8 @@ def finish():
     # tree, is for a GPU: reported here for software GL, not asserted.
     cost = report.get("finished_ms_on_minus_off")
     report["software_gl_within_10ms"] = None if cost is None else statistics.median(cost) <= 10
-    report["ok"] = bool(report.get("root_colour_ok"))
+    # A phase that raised (report["error"]) fails the check, whatever it had seen.
+    report["ok"] = bool(report.get("root_colour_ok")) and "error" not in report
     (OUT / "gui_check_overlay.json").write_text(json.dumps(report, indent=1))
     sys.stdout.flush()
     os._exit(0 if report["ok"] else 1)

@@ -72,9 +72,12 @@ def test_zip_contents():
     with zipfile.ZipFile(extension_zip()) as archive:
         names = archive.namelist()
         manifest = tomllib.loads(archive.read("blender_manifest.toml").decode())
-    for module in ("__init__.py", "operators.py", "properties.py", "ui.py", "extract.py",
-                   "preview.py", "camera.py", "jobs.py", "sweep.py"):
-        assert module in names
+    # Every module of the shipped folder, in its subpackage, and no tool.
+    shipped = {path.relative_to(utils.ADDON_DIR).as_posix() for path in utils.ADDON_DIR.rglob("*.py")}
+    assert {"__init__.py", "state.py", "build_render/operator.py"} <= shipped
+    assert shipped <= set(names), sorted(shipped - set(names))
+    assert not [name for name in names if "__pycache__" in name or name.endswith(".pyc")]
+    assert not [name for name in names if name.endswith(("build_extension.py", "demo_headless.py"))]
     wheels = manifest["wheels"]
     for wheel in wheels:
         assert wheel.lstrip("./") in names
@@ -85,7 +88,15 @@ def test_zip_contents():
                     ("embreex", "cp311-cp311"), ("embreex", "cp313-cp313")], tags
     assert manifest["blender_version_min"] == "4.2.0"
     assert manifest["blender_version_max"] == "5.3.0"
-    assert "build_extension.py" not in names
+
+
+def test_legacy_zip_contents():
+    """The legacy add-on: the same modules, with their subpackages, under bsplab_addon/."""
+    with zipfile.ZipFile(legacy_zip()) as archive:
+        names = set(archive.namelist())
+    shipped = {"bsplab_addon/" + path.relative_to(utils.ADDON_DIR).as_posix()
+               for path in utils.ADDON_DIR.rglob("*.py")}
+    assert names == shipped, sorted(names ^ shipped)
 
 
 def wheel_tags(wheel):

@@ -79,10 +79,10 @@ def press(scene):
 def test_overlay_draws_the_kept_trees_planes(addon, core, test_scene, gpu_context):
     scene = test_scene["scene"]
     press(scene)
-    overlay = addon.overlay
+    overlay, state = addon.overlay.draw, addon.state.STATE
     scene.bsplab_overlay.show = False
     hidden = draw_through_camera(scene, overlay.draw_overlay)
-    assert overlay.last_draw_calls == 0
+    assert state.overlay_draw_calls == 0
     assert not hidden.any()
 
     scene.bsplab_overlay.show = True
@@ -90,7 +90,7 @@ def test_overlay_draws_the_kept_trees_planes(addon, core, test_scene, gpu_contex
     geometry = overlay.current_geometry(scene)
     # One batch per non-empty part: faces, their outlines, the cells.
     parts = [geometry[key] for key in ("face_indices", "line_indices", "cell_indices")]
-    assert overlay.last_draw_calls == sum(1 for indices in parts if len(indices)) > 0
+    assert state.overlay_draw_calls == sum(1 for indices in parts if len(indices)) > 0
     coverage = np.count_nonzero(pixels[..., 3] > 0) / (WIDTH * HEIGHT)
     assert coverage > MIN_OVERLAY_COVERAGE, (coverage, gpu_context)
 

@@ -29,7 +29,7 @@ def test_sweep_fills_the_table_and_the_plot(addon, core, test_scene):
     scene = test_scene["scene"]
     set_sweep(scene)
     assert bpy.ops.bsplab.sweep_k() == {'FINISHED'}
-    table = scene.bsplab.sweep
+    table = scene.bsplab.k_sweep_table
     names = [m["name"] for m in table["methods"]]
     assert names == ["kd", "bsp_wn+kd", "bsp_ize+kd"]  # kd added as the reference
     points = {m["name"]: m["points"] for m in table["methods"]}
@@ -143,7 +143,7 @@ def test_sweep_plot_has_a_legend_in_each_methods_colour(addon, core, test_scene)
     scene = test_scene["scene"]
     set_sweep(scene, k_max=4, repetitions=1)
     assert bpy.ops.bsplab.sweep_k() == {'FINISHED'}
-    table = scene.bsplab.sweep
+    table = scene.bsplab.k_sweep_table
     pixels = utils.image_pixels_top_down(bpy.data.images[addon.k_sweep.experiment.PLOT_NAME])[..., :3]
     width = addon.k_sweep.experiment.PLOT_SIZE[0]
     names = [m["name"] for m in table["methods"]]

@@ -28,7 +28,7 @@ import time
 import bpy
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "addon"))
+sys.path.insert(0, str(REPO / "addon_tools"))
 import demo_headless  # noqa: E402  (the add-on loader)
 
 
