@@ -30,7 +30,7 @@ core: venv
 # .venv-bpy42) generates a scene, runs Build & Render, saves the preview image
 # as out/blender_demo.png and prints the panel's statistics.
 demo: core
-	bash blender_tests/demo_in_blender.sh $(abspath $(BIN)/python) -- --out out/blender_demo.png --compare-embree
+	bash addon_tests/in_blender/demo_in_blender.sh $(abspath $(BIN)/python) -- --out out/blender_demo.png --compare-embree
 
 # The same job on the core alone, without Blender.
 demo-core: core
@@ -45,9 +45,11 @@ test: test-cpp test-core test-sanitize test-blender
 test-cpp:
 	bash core/cpp_tests/run.sh
 
+# The core suite and the add-on's bpy-free tests (addon_tests/without_blender:
+# its jobs, images and overlay arrays on the real core, without Blender).
 test-core: core
 	bash core/tools/ensure_qemu_user.sh
-	$(BIN)/python -m pytest -q core/tests
+	$(BIN)/python -m pytest -q core/tests addon_tests/without_blender
 
 # The core built with AddressSanitizer + UndefinedBehaviorSanitizer in folders
 # of its own (core/build/asan, out/sanitize/asan; .venv's install is left
@@ -63,7 +65,7 @@ test-tsan: venv
 	BSPLAB_PYTHON=$(abspath $(BIN)/python) bash core/tools/sanitize.sh tsan
 
 test-blender: core
-	bash blender_tests/run_all.sh $(abspath $(BIN)/python)
+	bash addon_tests/in_blender/run_all.sh $(abspath $(BIN)/python)
 
 bench: core
 	$(BIN)/python -m bsplab bench --out docs/benchmark.md
@@ -85,7 +87,7 @@ results-quick: core
 # The extension zip for Blender 4.2 - 5.2: the core's wheels for CPython 3.11
 # and 3.13 (python313.sh finds this machine's 3.13 or makes a Debian 13 root).
 addon: core
-	$(BIN)/python addon/build_extension.py --python313 "$$(bash blender_tests/python313.sh)"
+	$(BIN)/python addon_tools/build_extension.py --python313 "$$(bash addon_tests/in_blender/python313.sh)"
 
 scenes: core
 	$(BIN)/python -m bsplab scenes --out scenes

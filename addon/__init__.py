@@ -3,8 +3,13 @@
 
 Blender 4.2+ reads `blender_manifest.toml`; older versions (3.4 and later)
 read `bl_info` when the folder is installed as a legacy add-on. Install the
-legacy add-on under a folder name other than `bsplab`, which is the core's
-module name.
+legacy add-on under a folder name other than `bsplab`, which is the name of
+the library it drives.
+
+The add-on is one subpackage per feature (docs/addon.md#layout), each with
+its `classes`, `register()` and `unregister()` (registration.py), around one
+runtime state object (state.py). Adding a feature is one subpackage and one
+line in FEATURES.
 """
 
 bl_info = {
@@ -17,59 +22,53 @@ bl_info = {
     "category": "3D View",
 }
 
-# Support "Reload Scripts": re-import the submodules, dependencies first.
+# Support "Reload Scripts", which re-runs this file in the same module: drop
+# every module of the add-on's packages (walking sys.modules under this
+# package's name) and the names they left here, so the imports below load
+# each afresh, in the order the imports themselves give.
 if "bpy" in locals():
-    import importlib
     import sys as _sys
-    for _name in ("backend", "extract", "camera", "preview", "stats", "compare", "tree_cache",
-                  "jobs", "sweep", "inspector_store", "inspector_trace", "inspector_draw",
-                  "overlay_geometry", "properties", "operators", "ui", "inspector",
-                  "inspector_panel", "overlay", "overlay_panel"):
-        _module = _sys.modules.get("{}.{}".format(__name__, _name))
-        if _module is not None:
-            importlib.reload(_module)
-    del _name, _module, _sys
+    _name = None
+    for _name in [name for name in _sys.modules if name.startswith(__name__ + ".")]:
+        del _sys.modules[_name]
+        globals().pop(_name[len(__name__) + 1:].partition(".")[0], None)
+    del _name, _sys
 
-import bpy
+import importlib
 
-from . import inspector, inspector_panel, operators, overlay, overlay_panel, properties, ui
+import bpy  # noqa: F401  (what tells a reload from the first import, above)
 
-classes = (
-    *properties.classes,
-    *operators.classes,
-    *ui.classes,
-    *inspector.classes,
-    *inspector_panel.classes,
-    *overlay.classes,
-    *overlay_panel.classes,
-)
+from . import state
 
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
-_registered = False
+# The features, registered in this order and unregistered in reverse: the
+# drawing helpers first, Build & Render (the main panel, which the other
+# panels sit in) before the features that use its tree.
+FEATURES = tuple(importlib.import_module("{}.{}".format(__name__, name)) for name in (
+    "drawing",
+    "build_render",
+    "compare",
+    "k_sweep",
+    "inspector",
+    "overlay",
+))
 
 
 def register():
-    global _registered
     # Registering twice would fail on the already registered classes; start
     # over instead, so re-running register() is safe.
-    if _registered:
+    if state.STATE.registered:
         unregister()
-    _register_classes()
-    properties.register_props()
-    overlay.register_props()
-    operators.add_handlers()
-    inspector.add_handlers()
-    _registered = True
+    state.add_handlers()
+    for feature in FEATURES:
+        feature.register()
+    state.STATE.registered = True
 
 
 def unregister():
-    global _registered
-    if not _registered:
+    if not state.STATE.registered:
         return
-    operators.cancel_active_job()
-    operators.remove_handlers()  # and forget the kept tree
-    inspector.remove_handlers()  # and forget the inspection
-    overlay.unregister_props()
-    properties.unregister_props()
-    _unregister_classes()
-    _registered = False
+    state.STATE.cancel_job()
+    for feature in reversed(FEATURES):
+        feature.unregister()
+    state.remove_handlers()  # and forget the file's trees, inspection and overlay
+    state.STATE.registered = False

@@ -110,7 +110,7 @@ if [ "$kind" = asan ]; then
   # descriptor 2 alone, so UBSan's report (which ignores log_path in GCC's
   # combined runtimes) reaches the log even when it aborts the process.
   LD_PRELOAD="$preload" "$PYTHON" -m pytest -q -p no:cacheprovider --capture=sys \
-    -m "not slow" core/tests "$@" || status=$?
+    -m "not slow" core/tests addon_tests/without_blender "$@" || status=$?
 else
   # report_signal_unsafe=0: CPython's signal handlers are not the core's.
   # exitcode=0: the filter below decides what counts.

@@ -1,0 +1,92 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Build & Render operator: build the tree of the visible meshes (or
+re-use the kept one) on a worker thread, render the scene camera's view,
+show it in the preview image and the statistics in the panel.
+"""
+
+import json
+
+import bpy
+
+from .. import backend
+from ..compare import images as compare_images
+from ..drawing import legend
+from ..state import STATE
+from . import preview, shown_build
+from .job import Job, check_result
+from .job_operator import JobOperator
+from .scene_reader import read_scene
+from .worker import UserError
+
+
+def preview_image(result):
+    """The render, and for a heat map its colour bar (0 .. the largest count,
+    and the unit). A bsplab older than the add-on may lack the maximum (the
+    legacy add-on runs on a separately installed bsplab): then the bar is left
+    out rather than the render lost."""
+    render = result["stats"]["render"]
+    if "b" in result["stats"]:
+        return compare_images.preview(result["image"], result["b_image"], result.get("counts"),
+                                      render["mode"], result["stats"]["compare"]["view"],
+                                      backend.heat_ramp())
+    try:
+        return legend.with_heat_bar(result["image"], render["mode"], render,
+                                    backend.heat_ramp())
+    except ValueError as ex:
+        print("BSP Lab: preview without its colour bar:", ex)
+        return result["image"]
+
+
+def apply_result(scene, result):
+    preview.write_preview(preview_image(result))
+    scene.bsplab.stats_json = json.dumps(result["stats"])
+
+
+class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
+    """Build the tree of the visible meshes and render the scene camera's view with it"""
+
+    bl_idname = "bsplab.build_render"
+    bl_label = "Build & Render"
+
+    def make_job(self, context, bsplab):
+        inp = read_scene(context, bsplab)
+        if inp.b is None:
+            STATE.tree_cache_b.clear()  # no B: don't hold its memory
+        job = Job(bsplab, inp, cache=STATE.tree_cache, cache_b=STATE.tree_cache_b)
+        shown_build.mark_job(job, context.view_layer)
+        return job
+
+    def apply(self, context, scene, job):
+        try:
+            check_result(job.result)
+        except UserError as ex:
+            return self._fail(str(ex))
+        try:
+            apply_result(scene, job.result)
+        except ValueError as ex:  # an A/B preview too narrow for its split
+            return self._fail("BSP Lab cannot show the preview: {}".format(ex))
+        shown_build.record(scene, job, bpy.data.images[preview.IMAGE_NAME])
+        stats = job.result["stats"]
+        build = stats["build"]
+        built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")
+                 else "built in {:.3f} s")
+        self.report({'INFO'}, ("BSP Lab: {} triangles, {} nodes, " + built + ", rendered in {:.3f} s")
+                    .format(stats["scene"]["triangles"], build.get("nodes", "?"),
+                            build.get("build_seconds", 0.0),
+                            stats["render"].get("seconds", 0.0))
+                    + b_report(stats))
+        return {'FINISHED'}
+
+
+def b_report(stats):
+    """The A/B part of Build & Render's report ("" without B)."""
+    if "b" not in stats:
+        return ""
+    build = stats["b"]["build"]
+    return "; B: {} nodes, {}, rendered in {:.3f} s".format(
+        build.get("nodes", "?"), "tree reused" if build.get("reused") else
+        "built in {:.3f} s".format(build.get("build_seconds", 0.0)),
+        stats["b"]["render"].get("seconds", 0.0))
+
+
+classes = (BSPLAB_OT_build_render,)

@@ -1,0 +1,123 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Main thread: copy what a job needs out of the scene (bpy) into plain
+values, so the job itself runs on a worker thread without touching bpy.
+
+The camera and the triangles are read by the `bsplab.blender` readers
+(`scene_camera`, `CameraSpec`, `CameraError`; `scene_triangles`,
+`SceneGeometry`), the one copy that `bsplab.io.load_blend` runs in Blender
+too. They are looked up on first use (PEP 562), so the add-on still imports,
+registers and draws when bsplab is missing.
+"""
+
+import sys
+
+from .. import backend
+from .job import JobInput, TreeChoice, make_camera
+from .worker import UserError
+
+# The names this module hands on from bsplab.blender, and from which reader.
+READER_NAMES = {
+    "scene_camera": "scene_camera", "CameraSpec": "scene_camera", "CameraError": "scene_camera",
+    "scene_triangles": "extract", "SceneGeometry": "extract",
+}
+
+
+def __getattr__(name):
+    if name not in READER_NAMES:
+        raise AttributeError("module {!r} has no attribute {!r}".format(__name__, name))
+    return getattr(backend.blender_module(READER_NAMES[name]), name)
+
+
+def _reader(name):
+    # An attribute of this module (__getattr__ when not set), so a test can
+    # replace one reader.
+    return getattr(sys.modules[__name__], name)
+
+
+def preview_size(render, preview_percentage):
+    """Preview size: render resolution x render % x the panel's preview %.
+
+    The panel draws it with or without bsplab, so it cannot wait for
+    bsplab's copy (bsplab.blender.scene_camera.preview_size, which
+    addon_tests/in_blender/test_camera.py checks this one against)."""
+    scale = render.resolution_percentage / 100.0 * preview_percentage / 100.0
+    width = max(1, int(round(render.resolution_x * scale)))
+    height = max(1, int(round(render.resolution_y * scale)))
+    return width, height
+
+
+def read_camera_and_geometry(context, bsplab):
+    """The scene camera at the preview size and the visible triangles; raise
+    UserError when either is missing or the camera is outside bsplab's
+    ranges (bsplab.camera.RANGES, wide enough for any usable Blender camera)."""
+    depsgraph = context.evaluated_depsgraph_get()
+    try:
+        cam = _reader("scene_camera")(context.scene, depsgraph,
+                                      context.scene.bsplab.preview_percentage)
+    except _reader("CameraError") as ex:
+        raise UserError(str(ex)) from ex
+    try:
+        make_camera(bsplab, cam)
+    except (TypeError, ValueError) as ex:
+        raise UserError("The scene camera '{}' cannot be previewed: {}".format(
+            cam.name, ex)) from ex
+    geometry = _reader("scene_triangles")(depsgraph)
+    if geometry.triangle_count == 0:
+        if geometry.instances == 0:
+            raise UserError("No visible mesh in the scene: nothing to build a tree from")
+        raise UserError("The visible meshes are empty: they have no faces to build a tree from")
+    return cam, geometry
+
+
+def checked_choice(methods, settings, tree=""):
+    """The TreeChoice of `settings` (A's or B's: a method and its options);
+    raise UserError for an unknown method or a K outside the method's range.
+    `tree` ("Tree B: ") starts the message."""
+    method = settings.method
+    if method not in methods:
+        raise UserError("{}Unknown tree method '{}'".format(tree, method))
+    info = methods[method]
+    params = info.get("params", ())
+    min_k, max_k = info.get("min_k"), info.get("max_k")
+    if "k" in params and min_k is not None and not min_k <= settings.k <= max_k:
+        raise UserError("{}K must be in {}..{} for {}, not {}".format(
+            tree, min_k, max_k, info.get("label", method), settings.k))
+    return TreeChoice(method, settings.build_options(params))
+
+
+def read_tree_b(scene, methods):
+    """Tree B's TreeChoice when "Compare with B" is on (compare/), else
+    None. B is built with A's thread count."""
+    compare = scene.bsplab_compare
+    if not compare.enabled:
+        return None
+    choice = checked_choice(methods, compare, tree="Tree B: ")
+    if "threads" not in methods[choice.method].get("params", ()):
+        return choice
+    return TreeChoice(choice.method, dict(choice.options, threads=scene.bsplab.threads))
+
+
+def read_scene(context, bsplab):
+    """Copy everything Build & Render's job needs out of bpy; raise UserError if unusable."""
+    scene = context.scene
+    settings = scene.bsplab
+    methods = bsplab.methods()
+    a = checked_choice(methods, settings)
+    b = read_tree_b(scene, methods)
+    cam, geometry = read_camera_and_geometry(context, bsplab)
+    return JobInput(
+        triangles=geometry.triangles,
+        objects=geometry.objects,
+        instances=geometry.instances,
+        camera=cam,
+        method=a.method,
+        options=a.options,
+        mode=settings.render_mode,
+        threads=settings.threads,
+        cull=settings.cull,
+        compare_with_embree=settings.compare_with_embree,
+        count_steps=settings.count_steps,
+        scene_name=scene.name,
+        b=b,
+        compare_view=scene.bsplab_compare.view,
+    )

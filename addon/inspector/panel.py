@@ -1,0 +1,92 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The "Ray Inspector" sub-panel: the pick and clear buttons, the inspected
+ray's counts and its step-by-step list."""
+
+import bpy
+
+from ..sidebar import BSPLabSubPanel
+from ..state import STATE
+from .operators import BSPLAB_OT_inspect_clear, BSPLAB_OT_inspect_pick
+
+# Steps listed before "... N more": a kd ray on a big scene walks 50-100
+# nodes, more than a sidebar shows usefully.
+MAX_ROWS = 40
+# The sidebar is narrow: the plane stands for the kind ("x = 0.5" is an x
+# node), a leaf is "leaf", and the t range and counts are short.
+STEP_HEADER = ("#", "node", "t range", "tests")
+
+
+def count_rows(inspection):
+    """(label, text) of the inspection's totals."""
+    totals = inspection["counts"]
+    if inspection["missed_box"]:
+        hit = "none: missed the tree box"
+    elif totals["hit_prim"] is None:
+        hit = "none"
+    else:
+        hit = "{} at t {:.4g}".format(totals["hit_prim"], totals["hit_t"])
+    return [
+        ("Ray", inspection["source"]),
+        ("Steps", "{} ({} leaves)".format(totals["steps"], totals["leaves"])),
+        ("General", str(totals["general_steps"])),
+        ("Tests", str(totals["tests"])),
+        ("Culled", str(totals["culled"])),
+        ("Hit", hit),
+        ("Time", "{:.1f} ms".format(1000 * inspection["seconds"])),
+    ]
+
+
+def step_cells(row):
+    """The texts of one step row (trace.step_rows)."""
+    number, kind, plane, t0, t1, tests, culled = row
+    tested = "" if kind != "leaf" else str(tests) + (" +{}c".format(culled) if culled else "")
+    return (str(number), plane or kind, "{:.3g}-{:.3g}".format(t0, t1), tested)
+
+
+def step_lines(inspection, limit=MAX_ROWS):
+    """The step list's rows of texts, capped at `limit`, and how many more."""
+    rows = inspection["rows"]
+    return [step_cells(row) for row in rows[:limit]], max(0, len(rows) - limit)
+
+
+def draw_step(layout, cells):
+    """One row of the step list: the four texts in columns."""
+    number, node, t_range, tests = cells
+    split = layout.split(factor=0.12)
+    split.label(text=number)
+    split = split.split(factor=0.45)
+    split.label(text=node)
+    split = split.split(factor=0.75)
+    split.label(text=t_range)
+    split.label(text=tests)
+
+
+class BSPLAB_PT_inspector(BSPLabSubPanel, bpy.types.Panel):
+    bl_label = "Ray Inspector"
+    bl_idname = "BSPLAB_PT_inspector"
+
+    def draw(self, context):
+        layout = self.layout
+        row = layout.row(align=True)
+        row.operator(BSPLAB_OT_inspect_pick.bl_idname, text="Pick Ray", icon='EYEDROPPER')
+        row.operator(BSPLAB_OT_inspect_clear.bl_idname, icon='X')
+        inspection = STATE.inspection
+        if inspection is None:
+            layout.label(text="Pick a preview pixel or a viewport point", icon='INFO')
+            return
+        box = layout.box()
+        col = box.column(align=True)
+        for label, text in count_rows(inspection):
+            split = col.split(factor=0.3)
+            split.label(text=label)
+            split.label(text=text)
+        lines, more = step_lines(inspection)
+        box = layout.box()
+        col = box.column(align=True)
+        for cells in [STEP_HEADER] + lines:
+            draw_step(col, cells)
+        if more:
+            col.label(text="... {} more steps".format(more))
+
+
+classes = (BSPLAB_PT_inspector,)

@@ -1,0 +1,239 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""What the viewport overlay draws, as plain numpy arrays (no bpy, no gpu).
+
+`overlay_geometry(tree, settings, cursor)` turns the core's split polygons
+and cells into the three batches the draw handler makes once per change:
+translucent faces of the split planes, their outlines, and (on request) the
+wireframes of the cells. Keeping this free of Blender lets the tests without
+Blender and those in Blender check exactly what is handed to `batch_for_shader`,
+while the GPU drawing itself is only seen in the GUI check under Xvfb.
+"""
+
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import backend
+
+# Planes' colours by kind (RGB), the panel's defaults: the axis colours of
+# Blender's own gizmos for kd planes, yellow for general planes.
+DEFAULT_KIND_COLOURS = (
+    (0.90, 0.20, 0.20),  # x
+    (0.30, 0.80, 0.20),  # y
+    (0.20, 0.40, 1.00),  # z
+    (1.00, 0.85, 0.10),  # general
+)
+# The depth ramp's ends (depth 0 and the slider's depth): warm at the root,
+# cool at the leaves, distinct from the kind colours' pure axes.
+DEPTH_RAMP = ((1.00, 0.55, 0.05), (0.10, 0.70, 1.00))
+# The outlines are drawn opaque over the translucent faces so the plane's
+# edges stay visible when the faces are faint.
+OUTLINE_ALPHA = 0.9
+CELL_COLOUR = (0.92, 0.92, 0.92, 0.55)
+# When the cap cuts the walk, the total is counted by a second walk allowed
+# this many times the cap; past that the note says "more than".
+COUNT_FACTOR = 10
+
+COLOUR_MODES = ("kind", "depth")
+SCOPES = ("whole", "cursor")
+
+
+@dataclass(frozen=True)
+class OverlaySettings:
+    """Everything the overlay's geometry depends on besides the tree (and
+    the 3D cursor in the "cursor" scope). Frozen: it is the cache key."""
+
+    max_depth: int = 8
+    colour_by: str = "kind"  # COLOUR_MODES
+    cells: bool = False  # leaf cells as wireframes
+    scope: str = "whole"  # SCOPES: the whole tree or the subtree under the cursor
+    subtree_depth: int = 0  # depth of the subtree's root on the cursor's path
+    alpha: float = 0.25  # of the filled planes
+    cap: int = 20_000  # most polygons (and most cells) drawn
+    kind_colours: tuple = DEFAULT_KIND_COLOURS  # x, y, z, general
+
+    def __post_init__(self):
+        if self.colour_by not in COLOUR_MODES:
+            raise ValueError(f"colour_by must be one of {COLOUR_MODES}, got {self.colour_by!r}")
+        if self.scope not in SCOPES:
+            raise ValueError(f"scope must be one of {SCOPES}, got {self.scope!r}")
+        for name in ("max_depth", "subtree_depth"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.cap < 1:
+            raise ValueError(f"cap must be >= 1, got {self.cap}")
+        if not 0.0 <= self.alpha <= 1.0:
+            raise ValueError(f"alpha must be in [0, 1], got {self.alpha}")
+        if len(self.kind_colours) != 4:
+            raise ValueError("kind_colours needs four RGB colours: x, y, z, general")
+
+
+def settings_of(props):
+    """The panel's properties (`Scene.bsplab_overlay`, read attribute by
+    attribute) as an OverlaySettings (the cache key)."""
+    return OverlaySettings(
+        max_depth=props.max_depth, colour_by=props.colour_by, cells=props.cells,
+        scope=props.scope, subtree_depth=props.subtree_depth, alpha=round(props.alpha, 4),
+        cap=props.cap,
+        kind_colours=tuple(tuple(round(c, 4) for c in colour) for colour in (
+            props.colour_x, props.colour_y, props.colour_z, props.colour_general)))
+
+
+def kind_colour_table(settings):
+    """(5, 3) RGB per core kind code (KINDS: x, y, z, leaf, general); a
+    leaf never has a plane, its row is unused."""
+    x, y, z, general = settings.kind_colours
+    return np.array([x, y, z, (0.0, 0.0, 0.0), general], np.float32)
+
+
+def depth_colours(depth, max_depth):
+    """(P, 3) RGB on the depth ramp: depth 0 at one end, max_depth at the other."""
+    t = (np.asarray(depth, np.float32) / max(max_depth, 1)).clip(0.0, 1.0)[:, None]
+    low, high = (np.array(c, np.float32) for c in DEPTH_RAMP)
+    return low + t * (high - low)
+
+
+def polygon_colours(polygons, settings):
+    """(P, 3) RGB, one per split polygon."""
+    if settings.colour_by == "depth":
+        return depth_colours(polygons["depth"], settings.max_depth)
+    return kind_colour_table(settings)[polygons["kind"]]
+
+
+def per_vertex(colours, offsets, alpha):
+    """Each polygon's RGB repeated over its vertices, with `alpha`: (V, 4)."""
+    counts = np.diff(np.asarray(offsets, np.int64))
+    rgb = np.repeat(np.asarray(colours, np.float32).reshape(-1, 3), counts, axis=0)
+    return np.hstack([rgb, np.full((len(rgb), 1), alpha, np.float32)])
+
+
+def subtree_root(tree, settings, cursor):
+    """(node, depth) the overlay starts from: the root for the whole tree,
+    else the node `subtree_depth` levels deep on the 3D cursor's path (a
+    shallower leaf if the path ends first); None when the cursor is outside
+    the tree's box."""
+    if settings.scope == "whole":
+        return (0, 0)
+    if cursor is None:
+        raise ValueError('the "cursor" scope needs the 3D cursor location')
+    return tree.node_at(cursor, max_depth=settings.subtree_depth)
+
+
+def count_note(shown, cut, total, total_cut, cap, noun):
+    """The panel's line about how much is drawn."""
+    if not cut:
+        return f"{shown:,} {noun}"
+    of = f"more than {total:,}" if total_cut else f"{total:,}"
+    return f"showing {shown:,} of {of} {noun} (cut at {cap:,})"
+
+
+def _split_planes(tree, settings, root):
+    polygons = tree.split_polygons(settings.max_depth, root=root, max_polygons=settings.cap)
+    total, total_cut = len(polygons["node"]), polygons["cut"]
+    if polygons["cut"]:
+        # How many there would be: a second walk, bounded, only when cut.
+        counted = tree.split_polygons(settings.max_depth, root=root,
+                                      max_polygons=COUNT_FACTOR * settings.cap)
+        total, total_cut = len(counted["node"]), counted["cut"]
+    return polygons, total, total_cut
+
+
+def _cells(tree, settings, root):
+    """The cells the drawn planes cut root's cell into: the leaves down to
+    one level below the slider's depth, and the nodes at that level in
+    place of their deeper subtrees (so the cells tile root's cell)."""
+    return tree.leaf_cells(max_depth=settings.max_depth + 1, root=root, max_cells=settings.cap)
+
+
+def empty_geometry(note):
+    """Nothing to draw, and why."""
+    vec3 = np.zeros((0, 3), np.float32)
+    rgba = np.zeros((0, 4), np.float32)
+    return {
+        "face_positions": vec3, "face_colours": rgba, "face_indices": np.zeros((0, 3), np.uint32),
+        "line_colours": rgba, "line_indices": np.zeros((0, 2), np.uint32),
+        "cell_positions": vec3, "cell_colours": rgba, "cell_indices": np.zeros((0, 2), np.uint32),
+        "polygons": 0, "polygon_total": 0, "cut": False, "cells": 0, "cells_cut": False,
+        "root": None, "root_depth": None, "notes": [note],
+    }
+
+
+def overlay_geometry(tree, settings, cursor=None):
+    """The overlay's batches' arrays for `tree` (a bsplab.Tree):
+
+    "face_positions" (V, 3) float32 and "face_colours" (V, 4) with
+    "face_indices" (T, 3) uint32 (a "TRIS" batch: the split planes, clipped
+    to their cells, translucent), "line_colours" (V, 4) and "line_indices"
+    (E, 2) (a "LINES" batch over the same positions: their outlines),
+    "cell_positions"/"cell_colours"/"cell_indices" (the cells' wireframe,
+    empty unless settings.cells); the counts "polygons", "polygon_total",
+    "cut", "cells", "cells_cut"; "root"/"root_depth" (the node drawn from)
+    and "notes" (lines for the panel). `cursor` is the 3D cursor's world
+    location, needed in the "cursor" scope.
+    """
+    bsplab = backend.import_bsplab()
+    start = subtree_root(tree, settings, cursor)
+    if start is None:
+        return empty_geometry("3D cursor is outside the tree's box")
+    root, root_depth = start
+    polygons, total, total_cut = _split_planes(tree, settings, root)
+    colours = polygon_colours(polygons, settings)
+    shown = len(polygons["node"])
+    out = empty_geometry(count_note(shown, polygons["cut"], total, total_cut, settings.cap,
+                                    "split polygons"))
+    out.update({
+        "face_positions": np.ascontiguousarray(polygons["vertices"], np.float32),
+        "face_colours": per_vertex(colours, polygons["offsets"], settings.alpha),
+        "face_indices": np.ascontiguousarray(polygons["triangles"], np.uint32),
+        "line_colours": per_vertex(colours, polygons["offsets"], OUTLINE_ALPHA),
+        "line_indices": bsplab.polygons.edge_pairs(polygons["offsets"]),
+        "polygons": shown, "polygon_total": total, "cut": bool(polygons["cut"]),
+        "root": int(root), "root_depth": int(root_depth),
+        "kind": polygons["kind"], "depth": polygons["depth"], "node": polygons["node"],
+    })
+    if settings.scope == "cursor":
+        out["notes"].insert(0, f"subtree of node {root:,} (depth {root_depth})")
+    if settings.cells:
+        cells = _cells(tree, settings, root)
+        vertices = np.ascontiguousarray(cells["vertices"], np.float32)
+        out.update({
+            "cell_positions": vertices,
+            "cell_colours": np.tile(np.array(CELL_COLOUR, np.float32), (len(vertices), 1)),
+            "cell_indices": np.ascontiguousarray(cells["edges"], np.uint32),
+            "cells": len(cells["node"]), "cells_cut": bool(cells["cut"]),
+        })
+        cell_note = f"{len(cells['node']):,} cells"
+        out["notes"].append(cell_note + (f" (cut at {settings.cap:,})" if cells["cut"] else ""))
+    return out
+
+
+class GeometryCache:
+    """The last overlay geometry and what it was made from: the draw handler
+    and the panel ask every redraw, the core walks only when the tree, the
+    settings or (in the cursor scope) the cursor changed. Holds the tree
+    weakly: a forgotten tree must be freed, not kept alive by the overlay."""
+
+    def __init__(self):
+        self.clear()
+
+    def clear(self):
+        self._tree = lambda: None
+        self._key = None
+        self._geometry = None
+        self.builds = 0  # how many times the core was asked: for the tests
+
+    def made_from(self, tree):
+        """True when the kept geometry was made from `tree`."""
+        return tree is not None and self._tree() is tree
+
+    def get(self, tree, settings, cursor=None):
+        if tree is None:
+            self.clear()
+            return None
+        key = (settings, tuple(cursor) if settings.scope == "cursor" and cursor else None)
+        if self._tree() is not tree or key != self._key:
+            self._geometry = overlay_geometry(tree, settings, cursor)
+            self._tree, self._key = weakref.ref(tree), key
+            self.builds += 1
+        return self._geometry

@@ -1,0 +1,148 @@
+#!/usr/bin/env bash
+# Run the add-on's test suite on every tested Blender:
+#   1. bpy 4.2.23 LTS (pip module, Python 3.11, in-process pytest): the manifest's minimum
+#   2. bpy 4.5.15 LTS (Python 3.11)
+#   3. bpy 5.0.1      (Python 3.11)
+#   4. bpy 5.2.3 LTS  (Python 3.13: this machine's own 3.13, else the Debian 13
+#      root's, blender_env.sh's find_python313)
+#   5. Debian's Blender 3.4.1 binary (pytest inside Blender; the legacy add-on)
+#
+#   addon_tests/in_blender/run_all.sh [PROJECT_PYTHON]
+#
+# PROJECT_PYTHON (default: $PYTHON, else .venv/bin/python) is a Python 3.11
+# that can build core/ (scikit-build-core, nanobind). The script
+# - creates or reuses .venv-bpy42/, -45/, -50/ and -52/ (git-ignored) with
+#   bpy, the numpy that release ships (< 2 for 3.11, bpy 5.2's own pin) and
+#   pytest;
+# - builds the bsplab wheels (cp311, and cp312-abi3 with the Python 3.13) and
+#   the extension zip (addon_tools/build_extension.py, which also validates the zip
+#   with each bpy's copy of Blender's own tool);
+# - installs the bsplab and embreex wheels into build/blender-deps/ (3.11)
+#   and build/blender-deps-313/, put on the path of each run (PYTHONPATH, or
+#   BSPLAB_PYTHONPATH inside Blender), so the extension test can check that
+#   the zip alone brings the core;
+# - apt-installs Debian's blender, python3-numpy and python3-pytest unless
+#   they are already there;
+# - with BSPLAB_GUI_CHECK=1, also drives the modal operator (worker thread,
+#   progress, Esc) in a real Blender window under Xvfb (gui_check.py).
+# Exits non-zero if any run fails.
+
+set -u -o pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+cd "$REPO"
+
+PY="${1:-${PYTHON:-$REPO/.venv/bin/python}}"
+# shellcheck source=addon_tests/in_blender/blender_env.sh
+. "$REPO/addon_tests/in_blender/blender_env.sh"
+check_python
+
+declare -a TIMES=()
+SECONDS=0
+lap() {  # NAME: the time since the last lap
+    TIMES+=("$(printf '%-44s %4d s' "$1" "$SECONDS")")
+    SECONDS=0
+}
+
+ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
+ensure_bpy_venv "$REPO/.venv-bpy45" 4.5.15 || die "could not set up bpy 4.5.15"
+ensure_bpy_venv "$REPO/.venv-bpy50" 5.0.1 || die "could not set up bpy 5.0.1"
+find_python313 || die "no Python 3.13 for bpy 5.2"
+ensure_bpy_venv "$REPO/.venv-bpy52" 5.2.3 "$PY313" "$RUN313" || die "could not set up bpy 5.2.3"
+lap "set-up: bpy venvs (reused when present)"
+build_extension || die "addon_tools/build_extension.py failed"
+install_deps || die "could not install the wheels into $DEPS"
+install_deps313 "$REPO/.venv-bpy52" || die "could not install the wheels into $DEPS313"
+lap "set-up: wheels, zip, validation"
+
+export BSPLAB_STRICT=1 BSPLAB_EXTENSION_ZIP="$ZIP"
+declare -a RESULTS=()
+STATUS=0
+
+LOGS="$(mktemp -d)"
+trap 'rm -rf "$LOGS"' EXIT
+
+record() {  # NAME RC
+    if [ "$2" -eq 0 ]; then RESULTS+=("$1: passed"); else RESULTS+=("$1: FAILED (exit $2)"); STATUS=1; fi
+}
+
+count() {  # WORD: the sum of "N WORD" over pytest's closing lines
+    grep -hE '^=+ .* in [0-9.]+s' "$LOGS"/*.log 2>/dev/null \
+        | grep -oE "[0-9]+ $1" | awk '{ s += $1 } END { print s + 0 }'
+}
+
+# --- bpy module runs ---------------------------------------------------------
+
+run_bpy_suite() {  # VENV DEPS [RUNNER]
+    local venv="$1" deps="$2" runner="${3:-}" name
+    # shellcheck disable=SC2086  # RUNNER is empty or one path
+    name="$($runner "$REPO/$venv/bin/python" -c 'import importlib.metadata as m, sys
+print("bpy %s (Python %d.%d)" % ((m.version("bpy"),) + sys.version_info[:2]))')"
+    log "pytest on $venv: $name"
+    USER_DIR="$(mktemp -d)"
+    # shellcheck disable=SC2086
+    PYTHONPATH="$deps" BLENDER_USER_RESOURCES="$USER_DIR" \
+        $runner "$REPO/$venv/bin/python" -m pytest addon_tests/in_blender -p no:cacheprovider -ra 2>&1 \
+        | tee "$LOGS/${venv#.}.log"
+    record "$name" "${PIPESTATUS[0]}"
+    rm -rf "$USER_DIR"
+    lap "suite: $name"
+}
+
+run_bpy_suite .venv-bpy42 "$DEPS"
+run_bpy_suite .venv-bpy45 "$DEPS"
+run_bpy_suite .venv-bpy50 "$DEPS"
+run_bpy_suite .venv-bpy52 "$DEPS313" "$RUN313"
+
+# --- Debian's Blender binary ---------------------------------------------------
+
+export DEBIAN_FRONTEND=noninteractive
+
+if command -v blender >/dev/null && /usr/bin/python3 -c 'import numpy, pytest' 2>/dev/null; then
+    echo "blender, python3-numpy and python3-pytest already installed"
+else
+    log "installing Debian's blender"
+    apt_install blender python3-numpy python3-pytest || die "apt-get install blender failed"
+fi
+
+BLENDER_VERSION="$(blender --version 2>/dev/null | head -n 1)"
+log "pytest inside $BLENDER_VERSION"
+USER_DIR="$(mktemp -d)"
+BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$USER_DIR" \
+    blender --background --factory-startup -noaudio --python-exit-code 1 \
+    --python addon_tests/in_blender/run_in_blender.py 2>&1 | tee "$LOGS/blender.log"
+record "$BLENDER_VERSION" "${PIPESTATUS[0]}"
+rm -rf "$USER_DIR"
+lap "suite: $BLENDER_VERSION (with its apt install)"
+
+# --- optional: the modal operator in a real window ---------------------------
+
+if [ "${BSPLAB_GUI_CHECK:-0}" = 1 ]; then
+    if ! command -v xvfb-run >/dev/null || ! command -v xdotool >/dev/null; then
+        log "installing xvfb and xdotool"
+        apt_install xvfb xdotool imagemagick || die "apt-get install xvfb failed"
+    fi
+    log "modal Build & Render in a window (Xvfb)"
+    GUI_OUT="$REPO/build/gui_check"
+    rm -rf "$GUI_OUT"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
+        xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \
+        --python addon_tests/in_blender/gui_check.py -- "$GUI_OUT" > "$LOGS/gui.txt" 2>&1
+    rc=$?
+    cat "$GUI_OUT/gui_check.json" 2>/dev/null || tail -n 30 "$LOGS/gui.txt"
+    record "GUI check ($BLENDER_VERSION, Xvfb)" "$rc"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python addon_tests/in_blender/gui_check_compare.py -- "$GUI_OUT" > "$LOGS/gui_compare.txt" 2>&1; rc=$?; cat "$GUI_OUT/gui_check_compare.json" 2>/dev/null || tail -n 30 "$LOGS/gui_compare.txt"; record "GUI check A/B ($BLENDER_VERSION, Xvfb)" "$rc"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python addon_tests/in_blender/gui_check_inspector.py -- "$GUI_OUT" > "$LOGS/gui_inspector.txt" 2>&1; record "GUI check, ray inspector (see $GUI_OUT/gui_check_inspector.json)" $?
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python addon_tests/in_blender/gui_check_overlay.py -- "$GUI_OUT/overlay" > "$LOGS/gui_overlay.txt" 2>&1; record "GUI overlay check ($BLENDER_VERSION, Xvfb)" "$?"
+fi
+
+log "summary"
+printf '  %s\n' "${RESULTS[@]}"
+echo "time of each part:"
+printf '  %s\n' "${TIMES[@]}"
+# One closing line over the five runs (a failed run may have no counts:
+# STATUS is what decides).
+FAILED=$(( $(count failed) + $(count error) ))
+[ "$STATUS" -eq 0 ] || [ "$FAILED" -gt 0 ] || FAILED=1
+echo "addon_tests/in_blender: $(count passed) passed, $FAILED failed, $(count skipped) skipped"
+exit "$STATUS"
