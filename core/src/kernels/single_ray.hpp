@@ -11,6 +11,7 @@
 
 #include "../traverse.hpp"
 #include "../triangle.hpp"
+#include "leaf_acceptance.hpp"
 #include "leaf_simd.hpp"
 #include "ray_coherence.hpp"
 #include "tree_view.hpp"
@@ -36,6 +37,12 @@ struct Mailbox {
         if (s == prim) return true;
         s = prim;
         return false;
+    }
+    // Unmarks `prim`: a leaf rejected its hit (leaf_acceptance.hpp), and a
+    // later leaf may accept it.
+    void forget(uint32_t prim) {
+        uint32_t& s = slot[prim & (kSize - 1)];
+        if (s == prim) s = 0xFFFFFFFFu;
     }
 };
 
@@ -88,29 +95,6 @@ bool clip_to_box(const Box& b, const float o[3], const float inv[3], const float
 struct StackEntry {
     uint32_t node;
     float tmin, tmax;
-};
-
-// The box of the ray's segment o + [t0, t1] d, padded so that no float error
-// of the end points (or of the traversal's plane crossings, which the
-// builders' fattening already bounds by tree.cull_pad / 2) can cull a hit.
-// An end point's error is relative to the terms it is summed from, |o| and
-// |t d|, not to the point itself: a ray from far away has |o| >> |o + t d|.
-struct SegmentBox {
-    float lo[3], hi[3];
-    void set(const float* org, const float* dir, float t0, float t1, float pad) {
-        const float tmag = std::max(std::fabs(t0), std::fabs(t1));
-        for (int k = 0; k < 3; ++k) {
-            const float a = org[k] + t0 * dir[k], b = org[k] + t1 * dir[k];
-            const float p =
-                pad + (std::fabs(org[k]) + tmag * std::fabs(dir[k])) * (1.0f / (1 << 20));
-            lo[k] = std::min(a, b) - p;
-            hi[k] = std::max(a, b) + p;
-        }
-    }
-    bool misses(const Box& b) const {
-        return b.lo.x > hi[0] || b.hi.x < lo[0] || b.lo.y > hi[1] || b.hi.y < lo[1] ||
-               b.lo.z > hi[2] || b.hi.z < lo[2];
-    }
 };
 
 // The counters are a compile-time policy of the traversal: CountEvery keeps
@@ -206,6 +190,10 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
             }
             const float t = float(ray_distance(tree.tris[p], sray));
             if (!(t > tmin && hit.beaten_by(t, p))) continue;
+            if (tree.box_kind != LeafBoxes::None &&
+                !leaf_accepts(tree, culling_box(tree, p, node.first + first + lane), org, dir,
+                              t0, std::min(t1, hit.reach), t, t_e))
+                continue;
             const float inv = 1.0f / (e.U[lane] + e.V[lane] + e.W[lane]);
             hit.take(t, p, e.V[lane] * inv, e.W[lane] * inv, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
@@ -253,7 +241,14 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         }
         count.test(p);
         TriangleHit th;
-        if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim)) {
+        bool accepted = intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim);
+        if (accepted && tree.box_kind != LeafBoxes::None &&
+            !leaf_accepts(tree, culling_box(tree, p, node.first + i), org, dir, t0,
+                          std::min(t1, hit.reach), th.t, t_e)) {
+            accepted = false;
+            mailbox.forget(p);  // another leaf may accept it
+        }
+        if (accepted) {
             count.hit(th.t);
             hit.take(th.t, p, th.u, th.v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
