@@ -13,11 +13,12 @@
 // 291 of 2,000 spoke rays answered differently with and without culling.
 //
 // So a leaf accepts a hit only where culling would have let the triangle be
-// tested: the hit's walk parameter, clamped to the leaf's segment [s0, s1]
-// (s1 = min(cell end, reach), as the cull box), gives a point whose box -
-// SegmentBox's, with the same padding - meets the triangle's culling box.
-// That point's box lies inside the segment's box (rounding is monotone, and
-// the point's padding is at most the segment's), so a culled triangle would
+// tested: the hit's walk parameter (give or take its rounding), clamped to
+// the leaf's segment [s0, s1] (s1 = min(cell end, reach), as the cull box),
+// gives a piece of the segment whose box - SegmentBox's, with the same
+// padding - meets the triangle's culling box. That box lies inside the
+// segment's box (rounding is monotone, and its padding is at most the
+// segment's), so a culled triangle would
 // have been rejected anyway: the accepted hits, in the same order, are the
 // same whether or not culling skipped anything. A real hit passes: its point
 // lies on the triangle, inside its box. Trees without boxes (leaf_boxes
@@ -73,14 +74,21 @@ inline const Box& culling_box(const TreeView& tree, uint32_t prim, uint32_t slot
 
 // True when the leaf accepts a hit at ray distance t (walk parameter
 // t - t_e) of a triangle with culling box `box`, the leaf's segment being
-// [s0, min(s1, reach)] of the walk origin `org` (see the comment above).
-inline bool leaf_accepts(const TreeView& tree, const Box& box, const float org[3],
-                         const float dir[3], float s0, float s1, float t, double t_e) {
+// [s0, min(s1, reach)] of the walk origin `org`, its box padded by `pad`
+// (cull_pad + WalkStart::slack, as the cull box; see the comment above).
+//
+// The hit's t is a float: its walk parameter s is known to an ulp of t (and
+// of s), which for a ray from far away (|d| large, t near 1) is a good
+// length along the ray - 1.2e-3 for a ray from 10^3 scene sizes of the fan
+// scene. So the "point" is the segment [s - e, s + e], both ends clamped.
+inline bool leaf_accepts(const Box& box, const float org[3], const float dir[3], float s0,
+                         float s1, float t, double t_e, float pad) {
     const float s = float(double(t) - t_e);
-    const float clamped = std::min(std::max(s, s0), s1);
-    SegmentBox point;
-    point.set(org, dir, clamped, clamped, tree.cull_pad);
-    return !point.misses(box);
+    const float e = (std::fabs(t) + std::fabs(s)) * 0x1p-23f;
+    const float a = std::min(std::max(s - e, s0), s1), b = std::min(std::max(s + e, s0), s1);
+    SegmentBox around;
+    around.set(org, dir, a, b, pad);
+    return !around.misses(box);
 }
 
 }  // namespace

@@ -90,6 +90,7 @@ struct PacketRays {
     // The walk origin, its error along each axis, the axis crossings' bounds.
     vfloat walk[3], org_err[3], axis_err[3];
     vfloat cross_a, cross_b;  // a general crossing's error terms (trace_one)
+    vfloat slack;             // WalkStart::slack: in the leaves' box padding
     // The shear of intersect_triangle per lane: the origin's and a vertex's
     // coordinates along kx, ky, kz, and sx, sy.
     vfloat okx, oky, okz, sx, sy;
@@ -211,7 +212,8 @@ inline LaneMask intersect_packet_triangle(const TreeView& tree, const PacketRays
             const float org[3] = {r.walk[0][i], r.walk[1][i], r.walk[2][i]};
             const float dir[3] = {r.dir[0][i], r.dir[1][i], r.dir[2][i]};
             const float s1 = std::min(t1[i], walk_reach(hits.t[i], r.t_e[i]));
-            if (!leaf_accepts(tree, box, org, dir, t0[i], s1, t[i], r.t_e[i])) {
+            if (!leaf_accepts(box, org, dir, t0[i], s1, t[i], r.t_e[i],
+                              tree.cull_pad + r.slack[i])) {
                 closer[i] = 0;
                 rejected |= 1u << i;
             }
@@ -400,6 +402,7 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
         }
         r.t_e[i] = w.t_e, r.test_t[i] = w.test_t;
         r.cross_a[i] = w.cross_a, r.cross_b[i] = w.cross_b;
+        r.slack[i] = w.slack;
         t0[i] = walk_lower(r.tmin[i], w.t_e), t1[i] = walk_upper(tmax[i], w.t_e);
     }
     for (int c = 0; c < 3; ++c) r.org_d[c] = to_double(r.org[c]);

@@ -174,10 +174,10 @@ template <uint32_t L, LeafBoxes kBoxes>
 __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
     const TreeView& tree, Node node, const uint32_t* list, uint32_t n_refs,
     const ShearedRay& sray, const float org[3], const float dir[3], float t0, float t1,
-    float tmin, double t_e, Closest& hit) {
+    float tmin, double t_e, float pad, Closest& hit) {
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
-        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+        seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
     for (uint32_t first = 0; first < n_refs; first += L) {
         const EdgeBlock<L> e =
             edge_test_block<L>(sray, tree.tris, list + first, std::min(L, n_refs - first));
@@ -191,13 +191,13 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
             const float t = float(ray_distance(tree.tris[p], sray));
             if (!(t > tmin && hit.beaten_by(t, p))) continue;
             if (tree.box_kind != LeafBoxes::None &&
-                !leaf_accepts(tree, culling_box(tree, p, node.first + first + lane), org, dir,
-                              t0, std::min(t1, hit.reach), t, t_e))
+                !leaf_accepts(culling_box(tree, p, node.first + first + lane), org, dir, t0,
+                              std::min(t1, hit.reach), t, t_e, pad))
                 continue;
             const float inv = 1.0f / (e.U[lane] + e.V[lane] + e.W[lane]);
             hit.take(t, p, e.V[lane] * inv, e.W[lane] * inv, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
-                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+                seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         }
     }
 }
@@ -209,7 +209,8 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
 template <LeafBoxes kBoxes, bool kSimdLeaves, class Counters>
 inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
                            const float org[3], const float dir[3], float t0, float t1, float tmin,
-                           double t_e, Mailbox& mailbox, Closest& hit, Counters& count) {
+                           double t_e, float pad, Mailbox& mailbox, Closest& hit,
+                           Counters& count) {
     const uint32_t n_refs = node.count();
     const uint32_t* list =
         n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
@@ -217,13 +218,13 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         static_assert(std::is_same_v<Counters, CountNothing>, "the counting path tests one by one");
         if (n_refs >= kSimdLeafMin) {
             intersect_leaf_hits_only<kWideLanes, kBoxes>(tree, node, list, n_refs, sray, org,
-                                                         dir, t0, t1, tmin, t_e, hit);
+                                                         dir, t0, t1, tmin, t_e, pad, hit);
             return;
         }
     }
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
-        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+        seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
     for (uint32_t i = 0; i < n_refs; ++i) {
         const uint32_t p = list[i];
         if constexpr (kBoxes != LeafBoxes::None) {
@@ -243,8 +244,8 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         TriangleHit th;
         bool accepted = intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim);
         if (accepted && tree.box_kind != LeafBoxes::None &&
-            !leaf_accepts(tree, culling_box(tree, p, node.first + i), org, dir, t0,
-                          std::min(t1, hit.reach), th.t, t_e)) {
+            !leaf_accepts(culling_box(tree, p, node.first + i), org, dir, t0,
+                          std::min(t1, hit.reach), th.t, t_e, pad)) {
             accepted = false;
             mailbox.forget(p);  // another leaf may accept it
         }
@@ -252,7 +253,7 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
             count.hit(th.t);
             hit.take(th.t, p, th.u, th.v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
-                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+                seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         } else {
             count.miss();
         }
@@ -316,6 +317,9 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     // (walk_start.hpp says what the terms bound), an axis crossing - a kd
     // node's - by axis_err[axis].
     const float cross_a = walk.cross_a, cross_b = walk.cross_b;
+    // The leaves' box padding: the builders' (cull_pad), and the triangle
+    // test's displacement from the exact ray (walk_start.hpp, kTestRel).
+    const float pad = tree.cull_pad + walk.slack;
     Mailbox mailbox;
     StackEntry stack[72];
     int top = 0;
@@ -405,7 +409,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
         // Empty leaves (most leaves of a kd tree) have nothing to test.
         if (node.count() != 0)
             intersect_leaf<kBoxes, kSimdLeaves>(tree, node, index, sray, org, dir, t0, t1, tmin,
-                                                t_e, mailbox, hit, count);
+                                                t_e, pad, mailbox, hit, count);
         // Early exit: pop_cell skips every cell that starts beyond the
         // closest hit. (Not `hit.t <= t1` here: with widened crossings, and
         // for rays in a plane, a cell still on the stack may start before

@@ -108,6 +108,10 @@ struct WalkStart {
     // A general plane's crossing error terms (see trace_one), of the walk's
     // origin: the scene's coordinates and |org|_1, and |d|_1.
     float cross_a, cross_b;
+    // The triangle test's displacement from the exact ray (kTestRel): in
+    // every crossing's bound, and in the leaves' box padding (cull_pad +
+    // slack, leaf_acceptance.hpp).
+    float slack;
 
     WalkStart(const Box& bounds, float two_scene_scale, const float o[3], const float d[3],
               const float idir[3]) {
@@ -119,7 +123,7 @@ struct WalkStart {
         t_e = box_entry(bounds, o, d, idir);
         const float scene = 0.5f * two_scene_scale;
         if (t_e == 0.0) {  // inside the box: the ray's own origin, exactly
-            const float slack = kTestRel * (scene + std::max({std::fabs(o[0]), std::fabs(o[1]),
+            slack = kTestRel * (scene + std::max({std::fabs(o[0]), std::fabs(o[1]),
                                                               std::fabs(o[2])}));
             // Parallel to an axis (idir = inf) the crossing is +-inf whatever
             // the bound: no displacement term there.
@@ -155,7 +159,7 @@ struct WalkStart {
         const bool far_test = t_e * speed > kFarTestSizes * extent;
         test_t = far_test ? t_e : 0.0;
         for (int k = 0; k < 3; ++k) test_org[k] = far_test ? org[k] : o[k];
-        const float slack =
+        slack =
             kTestRel * (scene + std::max({std::fabs(test_org[0]), std::fabs(test_org[1]),
                                           std::fabs(test_org[2])}));
         for (int k = 0; k < 3; ++k)
