@@ -271,7 +271,7 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     # Excused: near an edge the ray does not cross the surface through - an
     # open edge, or a silhouette edge (mesh_edges.crosses_surface).
     groups = mesh_edges.edge_groups(tris)
-    shared = mesh_edges.shared_mask(tris)
+    shared = mesh_edges.shared_mask(tris, distinct=True)
     excused = np.zeros(len(idx), bool)
     for row, edge in zip(*np.nonzero(near)):
         if not excused[row] and not mesh_edges.crosses_surface(tris, groups, int(prim[row]),
