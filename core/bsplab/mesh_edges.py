@@ -54,8 +54,9 @@ def crosses_surface(tris: np.ndarray, groups: np.ndarray, prim: int, edge: int,
         return float(np.dot(np.cross(t[1] - t[0], t[2] - t[0]), d))
 
     mine = facing(row)
+    ids = triangle_ids(tris)
     for other in np.flatnonzero(groups == groups[row]):
-        if other == row:
+        if ids[other // 3] == ids[prim]:  # itself, or a duplicate of it
             continue
         # The same edge run the same way: the other triangle's winding is
         # the opposite of a consistent surface's.
@@ -85,12 +86,25 @@ def touching_vertex(tris: np.ndarray, shared: np.ndarray, prim: int, vertex: int
     return bool((facing > 0).any() and (facing < 0).any())
 
 
-def shared_mask(tris: np.ndarray) -> np.ndarray:
-    """(N, 3) bool: edge j of triangle i (vertex j to j + 1) is shared."""
+def triangle_ids(tris: np.ndarray) -> np.ndarray:
+    """(N,) int: one number per distinct triangle, as a set of three vertices
+    (bit for bit, any order): duplicates of a triangle get its number."""
+    t = np.ascontiguousarray(tris, np.float32).view(np.uint32).reshape(-1, 3, 3)
+    keys = np.sort(t.view(np.dtype((np.void, 12))).reshape(-1, 3), axis=1)
+    return np.unique(keys.view(np.uint8).reshape(len(t), -1), axis=0, return_inverse=True)[1].ravel()
+
+
+def shared_mask(tris: np.ndarray, distinct: bool = False) -> np.ndarray:
+    """(N, 3) bool: edge j of triangle i (vertex j to j + 1) is shared. With
+    `distinct`, only by another triangle than a duplicate of triangle i: a
+    doubled open grid's border is still a border (the leak check's view)."""
     a, b = triangle_edges(tris)
-    _, inverse, counts = np.unique(edge_keys(a, b), axis=0, return_inverse=True,
-                                   return_counts=True)
-    return (counts[inverse.ravel()] >= 2).reshape(-1, 3)
+    _, inverse = np.unique(edge_keys(a, b), axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    if not distinct:
+        return (np.bincount(inverse)[inverse] >= 2).reshape(-1, 3)
+    pairs = np.unique(np.stack([inverse, np.repeat(triangle_ids(tris), 3)], axis=1), axis=0)
+    return (np.bincount(pairs[:, 0], minlength=inverse.max() + 1)[inverse] >= 2).reshape(-1, 3)
 
 
 def shared_edges(tris: np.ndarray) -> np.ndarray:

@@ -82,6 +82,13 @@ def check_spec(case: dict) -> None:
             f"{method} {opts}: {len(c['unexplained'])} {name} rays disagree with Embree; "
             f"scene {json.dumps(case)}; e.g. o {o[bad].tolist()} d {d[bad].tolist()}: ours "
             f"{h['prim'][bad]} t {h['t'][bad]}, Embree {ref['prim'][bad]} t {ref['t'][bad]}")
+        # A leak - a miss or a farther hit where Embree hits (oracle.leaks) -
+        # is wrong even when the double-precision tie-break could explain it.
+        leak = c["leaks"][:3]
+        assert len(c["leaks"]) == 0, (
+            f"{method} {opts}: {len(c['leaks'])} {name} rays leak; scene {json.dumps(case)}; "
+            f"e.g. o {o[leak].tolist()} d {d[leak].tolist()}: ours {h['prim'][leak]} t "
+            f"{h['t'][leak]}, Embree {ref['prim'][leak]} t {ref['t'][leak]}")
 
 
 @settings(max_examples=20_000 if LONG else 150, deadline=None, derandomize=not LONG,

@@ -25,6 +25,7 @@
 #include "trace/traverse.hpp"
 #include "tree.hpp"
 #include "trace/triangle.hpp"
+#include "trace/kernels/leaf_acceptance.hpp"
 #include "trace/kernels/tree_view.hpp"
 #include "trace/kernels/walk_start.hpp"
 
@@ -89,6 +90,7 @@ struct PacketRays {
     // The walk origin, its error along each axis, the axis crossings' bounds.
     vfloat walk[3], org_err[3], axis_err[3];
     vfloat cross_a, cross_b;  // a general crossing's error terms (trace_one)
+    vfloat slack;             // WalkStart::slack: in the leaves' box padding
     // The shear of intersect_triangle per lane: the origin's and a vertex's
     // coordinates along kx, ky, kz, and sx, sy.
     vfloat okx, oky, okz, sx, sy;
@@ -165,8 +167,13 @@ inline vfloat plane_distances_of(const PacketRays& r, const Triangle& tri, LaneM
 // intersect_triangle for the lanes in `lanes`, each against its own closest
 // hit: the same operations in the same order, so the same bits. The rare
 // recompute of an edge function of exactly zero runs lane by lane.
-inline void intersect_packet_triangle(const PacketRays& r, const Triangle& tri, uint32_t prim,
-                                      LaneMask lanes, PacketHits& hits) {
+// Returns the lanes that passed the triangle test but whose hit the leaf
+// did not accept (leaf_acceptance.hpp; the leaf's box `slot`, its
+// ranges [t0, t1]): the mailbox forgets them.
+inline LaneMask intersect_packet_triangle(const TreeView& tree, const PacketRays& r,
+                                          const Triangle& tri, uint32_t prim, uint32_t slot,
+                                          LaneMask lanes, vfloat t0, vfloat t1,
+                                          PacketHits& hits) {
     const ShearedVertex a = shear_vertex(r, tri.v[0]), b = shear_vertex(r, tri.v[1]),
                         c = shear_vertex(r, tri.v[2]);
     // A = v0 - org, then Ax = A[kx] - sx A[kz], as in intersect_triangle.
@@ -188,20 +195,36 @@ inline void intersect_packet_triangle(const PacketRays& r, const Triangle& tri, 
     const vint outside = ((U < zero) | (V < zero) | (W < zero)) & ((U > zero) | (V > zero) | (W > zero));
     const vfloat det = U + V + W;
     const LaneMask inside = lanes & ~lane_bits(outside | (det == zero));
-    if (!inside) return;
+    if (!inside) return 0;
     // The distance of the lanes that pass the edge test (most of them hit:
     // this runs about once per hit, not per test). A lane or two, as in
     // packets that spread over small triangles, take the scalar division.
     const vfloat t = __builtin_popcount(inside) <= 2 ? plane_distances_of(r, tri, inside)
                                                      : plane_distances(r, tri);
     const vint prims = int32_t(prim) + vint{};
-    const vint closer = lane_vector(inside) & (t > r.tmin) &
-                        ((t < hits.t) | ((t == hits.t) & (prims < hits.prim)));
+    vint closer = lane_vector(inside) & (t > r.tmin) &
+                  ((t < hits.t) | ((t == hits.t) & (prims < hits.prim)));
+    LaneMask rejected = 0;
+    if (tree.box_kind != LeafBoxes::None) {
+        const Box& box = culling_box(tree, prim, slot);
+        for (LaneMask m = lane_bits(closer); m; m &= m - 1) {
+            const int i = __builtin_ctz(m);
+            const float org[3] = {r.walk[0][i], r.walk[1][i], r.walk[2][i]};
+            const float dir[3] = {r.dir[0][i], r.dir[1][i], r.dir[2][i]};
+            const float s1 = std::min(t1[i], walk_reach(hits.t[i], r.t_e[i]));
+            if (!leaf_accepts(box, org, dir, t0[i], s1, t[i], r.t_e[i],
+                              tree.cull_pad + r.slack[i])) {
+                closer[i] = 0;
+                rejected |= 1u << i;
+            }
+        }
+    }
     const vfloat inv = 1.0f / det;
     hits.t = select(closer, t, hits.t);
     hits.u = select(closer, V * inv, hits.u);
     hits.v = select(closer, W * inv, hits.v);
     hits.prim = closer ? prims : hits.prim;
+    return rejected;
 }
 
 // The mailbox of a packet: which lanes already tested a triangle. A lane
@@ -227,18 +250,26 @@ struct PacketMailbox {
         tested[s] |= lanes;
         return fresh;
     }
+    // Unmarks the lanes of `lanes` for `p` (their leaf rejected its hit).
+    void forget(uint32_t p, LaneMask lanes) {
+        const uint32_t s = p & (kSize - 1);
+        if (prim[s] == p) tested[s] &= ~lanes;
+    }
 };
 
 inline void intersect_packet_leaf(const TreeView& tree, Node node, uint32_t index,
-                                  const PacketRays& rays, LaneMask lanes, PacketMailbox& mailbox,
-                                  PacketHits& hits) {
+                                  const PacketRays& rays, LaneMask lanes, vfloat t0, vfloat t1,
+                                  PacketMailbox& mailbox, PacketHits& hits) {
     const uint32_t n_refs = node.count();
     const uint32_t* list =
         n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
     for (uint32_t i = 0; i < n_refs; ++i) {
         const uint32_t p = list[i];
         const LaneMask todo = mailbox.untested(p, lanes);
-        if (todo) intersect_packet_triangle(rays, tree.tris[p], p, todo, hits);
+        if (!todo) continue;
+        const LaneMask rejected =
+            intersect_packet_triangle(tree, rays, tree.tris[p], p, node.first + i, todo, t0, t1, hits);
+        if (rejected) mailbox.forget(p, rejected);
     }
 }
 
@@ -371,6 +402,7 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
         }
         r.t_e[i] = w.t_e, r.test_t[i] = w.test_t;
         r.cross_a[i] = w.cross_a, r.cross_b[i] = w.cross_b;
+        r.slack[i] = w.slack;
         t0[i] = walk_lower(r.tmin[i], w.t_e), t1[i] = walk_upper(tmax[i], w.t_e);
     }
     for (int c = 0; c < 3; ++c) r.org_d[c] = to_double(r.org[c]);
@@ -439,7 +471,7 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
             continue;
         }
         if (active) {
-            intersect_packet_leaf(tree, node, index, rays, active, mailbox, hits);
+            intersect_packet_leaf(tree, node, index, rays, active, t0, t1, mailbox, hits);
             reach = lane_reach(rays, hits.t);
         }
         // Pop the next cell its lanes still need: a lane leaves a cell that

@@ -11,6 +11,7 @@
 
 #include "trace/traverse.hpp"
 #include "trace/triangle.hpp"
+#include "trace/kernels/leaf_acceptance.hpp"
 #include "trace/kernels/leaf_simd.hpp"
 #include "trace/kernels/ray_coherence.hpp"
 #include "trace/kernels/tree_view.hpp"
@@ -36,6 +37,12 @@ struct Mailbox {
         if (s == prim) return true;
         s = prim;
         return false;
+    }
+    // Unmarks `prim`: a leaf rejected its hit (leaf_acceptance.hpp), and a
+    // later leaf may accept it.
+    void forget(uint32_t prim) {
+        uint32_t& s = slot[prim & (kSize - 1)];
+        if (s == prim) s = 0xFFFFFFFFu;
     }
 };
 
@@ -88,29 +95,6 @@ bool clip_to_box(const Box& b, const float o[3], const float inv[3], const float
 struct StackEntry {
     uint32_t node;
     float tmin, tmax;
-};
-
-// The box of the ray's segment o + [t0, t1] d, padded so that no float error
-// of the end points (or of the traversal's plane crossings, which the
-// builders' fattening already bounds by tree.cull_pad / 2) can cull a hit.
-// An end point's error is relative to the terms it is summed from, |o| and
-// |t d|, not to the point itself: a ray from far away has |o| >> |o + t d|.
-struct SegmentBox {
-    float lo[3], hi[3];
-    void set(const float* org, const float* dir, float t0, float t1, float pad) {
-        const float tmag = std::max(std::fabs(t0), std::fabs(t1));
-        for (int k = 0; k < 3; ++k) {
-            const float a = org[k] + t0 * dir[k], b = org[k] + t1 * dir[k];
-            const float p =
-                pad + (std::fabs(org[k]) + tmag * std::fabs(dir[k])) * (1.0f / (1 << 20));
-            lo[k] = std::min(a, b) - p;
-            hi[k] = std::max(a, b) + p;
-        }
-    }
-    bool misses(const Box& b) const {
-        return b.lo.x > hi[0] || b.hi.x < lo[0] || b.lo.y > hi[1] || b.hi.y < lo[1] ||
-               b.lo.z > hi[2] || b.hi.z < lo[2];
-    }
 };
 
 // The counters are a compile-time policy of the traversal: CountEvery keeps
@@ -190,10 +174,10 @@ template <uint32_t L, LeafBoxes kBoxes>
 __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
     const TreeView& tree, Node node, const uint32_t* list, uint32_t n_refs,
     const ShearedRay& sray, const float org[3], const float dir[3], float t0, float t1,
-    float tmin, double t_e, Closest& hit) {
+    float tmin, double t_e, float pad, Closest& hit) {
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
-        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+        seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
     for (uint32_t first = 0; first < n_refs; first += L) {
         const EdgeBlock<L> e =
             edge_test_block<L>(sray, tree.tris, list + first, std::min(L, n_refs - first));
@@ -206,10 +190,14 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
             }
             const float t = float(ray_distance(tree.tris[p], sray));
             if (!(t > tmin && hit.beaten_by(t, p))) continue;
+            if (tree.box_kind != LeafBoxes::None &&
+                !leaf_accepts(culling_box(tree, p, node.first + first + lane), org, dir, t0,
+                              std::min(t1, hit.reach), t, t_e, pad))
+                continue;
             const float inv = 1.0f / (e.U[lane] + e.V[lane] + e.W[lane]);
             hit.take(t, p, e.V[lane] * inv, e.W[lane] * inv, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
-                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+                seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         }
     }
 }
@@ -221,7 +209,8 @@ __attribute__((noinline, flatten)) void intersect_leaf_hits_only(
 template <LeafBoxes kBoxes, bool kSimdLeaves, class Counters>
 inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, const ShearedRay& sray,
                            const float org[3], const float dir[3], float t0, float t1, float tmin,
-                           double t_e, Mailbox& mailbox, Closest& hit, Counters& count) {
+                           double t_e, float pad, Mailbox& mailbox, Closest& hit,
+                           Counters& count) {
     const uint32_t n_refs = node.count();
     const uint32_t* list =
         n_refs == 1 && tree.inline_single ? &tree.nodes[index].first : tree.refs + node.first;
@@ -229,13 +218,13 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         static_assert(std::is_same_v<Counters, CountNothing>, "the counting path tests one by one");
         if (n_refs >= kSimdLeafMin) {
             intersect_leaf_hits_only<kWideLanes, kBoxes>(tree, node, list, n_refs, sray, org,
-                                                         dir, t0, t1, tmin, t_e, hit);
+                                                         dir, t0, t1, tmin, t_e, pad, hit);
             return;
         }
     }
     SegmentBox seg;
     if constexpr (kBoxes != LeafBoxes::None)
-        seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+        seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
     for (uint32_t i = 0; i < n_refs; ++i) {
         const uint32_t p = list[i];
         if constexpr (kBoxes != LeafBoxes::None) {
@@ -253,11 +242,18 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         }
         count.test(p);
         TriangleHit th;
-        if (intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim)) {
+        bool accepted = intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim);
+        if (accepted && tree.box_kind != LeafBoxes::None &&
+            !leaf_accepts(culling_box(tree, p, node.first + i), org, dir, t0,
+                          std::min(t1, hit.reach), th.t, t_e, pad)) {
+            accepted = false;
+            mailbox.forget(p);  // another leaf may accept it
+        }
+        if (accepted) {
             count.hit(th.t);
             hit.take(th.t, p, th.u, th.v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
-                seg.set(org, dir, t0, std::min(t1, hit.reach), tree.cull_pad);
+                seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         } else {
             count.miss();
         }
@@ -321,6 +317,9 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     // (walk_start.hpp says what the terms bound), an axis crossing - a kd
     // node's - by axis_err[axis].
     const float cross_a = walk.cross_a, cross_b = walk.cross_b;
+    // The leaves' box padding: the builders' (cull_pad), and the triangle
+    // test's displacement from the exact ray (walk_start.hpp, kTestRel).
+    const float pad = tree.cull_pad + walk.slack;
     Mailbox mailbox;
     StackEntry stack[72];
     int top = 0;
@@ -410,7 +409,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
         // Empty leaves (most leaves of a kd tree) have nothing to test.
         if (node.count() != 0)
             intersect_leaf<kBoxes, kSimdLeaves>(tree, node, index, sray, org, dir, t0, t1, tmin,
-                                                t_e, mailbox, hit, count);
+                                                t_e, pad, mailbox, hit, count);
         // Early exit: pop_cell skips every cell that starts beyond the
         // closest hit. (Not `hit.t <= t1` here: with widened crossings, and
         // for rays in a plane, a cell still on the stack may start before

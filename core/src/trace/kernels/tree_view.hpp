@@ -16,6 +16,9 @@ struct TreeView {
     const Box* boxes;
     Box bounds;
     float cull_pad;
+    // The kind of `boxes` (LeafBoxes::None when the tree keeps none): every
+    // path, culling or not, accepts hits by them (leaf_acceptance.hpp).
+    LeafBoxes box_kind;
     // Trees with a box per reference keep one-triangle leaves in refs[] too.
     bool inline_single;
     // The scene's part of a general plane's crossing error (see cross_a in
@@ -42,6 +45,7 @@ inline TreeView make_tree_view(const Tree& tree) {
                     tree.boxes.data(),
                     tree.bounds,
                     tree.cull_pad,
+                    tree.boxes.empty() ? LeafBoxes::None : tree.options.leaf_boxes,
                     tree.options.leaf_boxes != LeafBoxes::Clipped,
                     2.0f * scene_scale,
                     tree.scale,

@@ -83,6 +83,20 @@ inline float walk_reach(float hit_t, double t_e) {
 // (the same edge of two triangles is decided the same way).
 constexpr double kFarTestSizes = 1024.0;
 
+// How far the triangle test's decision may sit from the exact ray: the
+// watertight test shears the vertices relative to its origin in float
+// (v - o, then x - s z), so it decides for a ray displaced by a few
+// roundings of |v - o| <= |test origin| + the scene's largest coordinate
+// (8 of 2^-24 with the shear's and the subtraction's; 2^-20 leaves room).
+// A crossing's bound includes that displacement: where the float test hits
+// a triangle the exact ray passes beside, the walk still visits the cell of
+// that triangle. (Lost Empire: a ray 7.6e-6 from a voxel corner, x = 8,
+// y = 0, crossed x = 8 at y = +4e-6, above the y = 0 plane; the float test
+// hit the triangle below it, whose cell the exact ray never entered, and
+// missed its neighbour, which the exact ray hits: a leak to a wall 2 %
+// farther.)
+constexpr float kTestRel = 1.0f / (1 << 20);
+
 struct WalkStart {
     double t_e;
     float org[3];      // o + t_e d, rounded to float
@@ -94,6 +108,10 @@ struct WalkStart {
     // A general plane's crossing error terms (see trace_one), of the walk's
     // origin: the scene's coordinates and |org|_1, and |d|_1.
     float cross_a, cross_b;
+    // The triangle test's displacement from the exact ray (kTestRel): in
+    // every crossing's bound, and in the leaves' box padding (cull_pad +
+    // slack, leaf_acceptance.hpp).
+    float slack;
 
     WalkStart(const Box& bounds, float two_scene_scale, const float o[3], const float d[3],
               const float idir[3]) {
@@ -103,11 +121,19 @@ struct WalkStart {
         // most |s| |d|_1); plus the rounding of org itself.
         constexpr float kCrossUlps = 1.0f / (1 << 20);  // 16 roundings of 2^-24
         t_e = box_entry(bounds, o, d, idir);
+        const float scene = 0.5f * two_scene_scale;
         if (t_e == 0.0) {  // inside the box: the ray's own origin, exactly
-            for (int k = 0; k < 3; ++k) org[k] = test_org[k] = o[k], org_err[k] = 0.0f;
+            slack = kTestRel * (scene + std::max({std::fabs(o[0]), std::fabs(o[1]),
+                                                              std::fabs(o[2])}));
+            // Parallel to an axis (idir = inf) the crossing is +-inf whatever
+            // the bound: no displacement term there.
+            for (int k = 0; k < 3; ++k)
+                org[k] = test_org[k] = o[k],
+                org_err[k] = d[k] == 0.0f ? 0.0f : slack * std::fabs(idir[k]);
             test_t = 0.0;
             cross_a = kCrossUlps * (two_scene_scale + std::fabs(o[0]) + std::fabs(o[1]) +
-                                    std::fabs(o[2]));
+                                    std::fabs(o[2])) +
+                      slack;
             cross_b = kCrossUlps * (std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]));
             return;
         }
@@ -133,9 +159,14 @@ struct WalkStart {
         const bool far_test = t_e * speed > kFarTestSizes * extent;
         test_t = far_test ? t_e : 0.0;
         for (int k = 0; k < 3; ++k) test_org[k] = far_test ? org[k] : o[k];
+        slack =
+            kTestRel * (scene + std::max({std::fabs(test_org[0]), std::fabs(test_org[1]),
+                                          std::fabs(test_org[2])}));
+        for (int k = 0; k < 3; ++k)
+            if (d[k] != 0.0f) org_err[k] += slack * std::fabs(idir[k]);
         cross_a = kCrossUlps * (two_scene_scale + std::fabs(org[0]) + std::fabs(org[1]) +
                                 std::fabs(org[2])) +
-                  float(far);
+                  float(far) + slack;
         cross_b = kCrossUlps * (std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]));
     }
 };
