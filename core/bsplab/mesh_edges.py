@@ -37,30 +37,34 @@ def edge_groups(tris: np.ndarray) -> np.ndarray:
     return np.unique(edge_keys(a, b), axis=0, return_inverse=True)[1].ravel()
 
 
-def crosses_surface(tris: np.ndarray, groups: np.ndarray, prim: int, edge: int,
-                    direction: np.ndarray) -> bool:
+def crosses_surface(tris: np.ndarray, groups: np.ndarray, ids: np.ndarray, prim: int,
+                    edge: int, direction: np.ndarray) -> bool:
     """Whether a ray along `direction` through edge `edge` of triangle
     `prim` passes from one side of the surface to the other there (one of
     the edge's other triangles faces the ray the way `prim` does, windings
     made consistent), rather than touching a silhouette edge - a convex
     corner seen from outside, where a single-precision test may rightly
-    miss both triangles."""
-    a, b = triangle_edges(tris)
+    miss both triangles. `groups` is edge_groups(tris) and `ids`
+    triangle_ids(tris), computed once by the caller: both sort the whole
+    mesh, and the leak check asks this for many rays."""
+    t32 = np.asarray(tris, np.float32)
     row = 3 * prim + edge
     d = np.asarray(direction, np.float64)
 
     def facing(r: int) -> float:
-        t = tris[r // 3].astype(np.float64)
+        t = t32[r // 3].astype(np.float64)
         return float(np.dot(np.cross(t[1] - t[0], t[2] - t[0]), d))
 
+    def start(r: int) -> np.ndarray:  # the edge's first end point (triangle_edges' a)
+        return t32[r // 3, r % 3]
+
     mine = facing(row)
-    ids = triangle_ids(tris)
     for other in np.flatnonzero(groups == groups[row]):
         if ids[other // 3] == ids[prim]:  # itself, or a duplicate of it
             continue
         # The same edge run the same way: the other triangle's winding is
         # the opposite of a consistent surface's.
-        flip = -1.0 if (a[other] == a[row]).all() else 1.0
+        flip = -1.0 if (start(other) == start(row)).all() else 1.0
         if flip * facing(other) * mine > 0:
             return True
     return False

@@ -271,11 +271,12 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     # Excused: near an edge the ray does not cross the surface through - an
     # open edge, or a silhouette edge (mesh_edges.crosses_surface).
     groups = mesh_edges.edge_groups(tris)
+    ids = mesh_edges.triangle_ids(tris)
     shared = mesh_edges.shared_mask(tris, distinct=True)
     excused = np.zeros(len(idx), bool)
     for row, edge in zip(*np.nonzero(near)):
-        if not excused[row] and not mesh_edges.crosses_surface(tris, groups, int(prim[row]),
-                                                               int(edge), d[row]):
+        if not excused[row] and not mesh_edges.crosses_surface(
+                tris, groups, ids, int(prim[row]), int(edge), d[row]):
             excused[row] = True
     # Near two edges: through their common vertex, which may be a corner
     # the ray only touches.
