@@ -86,6 +86,15 @@ inline bool leaf_accepts(const Box& box, const float org[3], const float dir[3],
     const float s = float(double(t) - t_e);
     const float e = (std::fabs(t) + std::fabs(s)) * 0x1p-23f;
     const float a = std::min(std::max(s - e, s0), s1), b = std::min(std::max(s + e, s0), s1);
+    // The cheap case first, taken by nearly every real hit: the piece's
+    // near end, computed exactly as SegmentBox::set computes it, lies in the
+    // culling box. The piece's box holds that point (its padding is >= 0,
+    // and rounding is monotone), so it meets the culling box: the answer of
+    // the full test below, without the far end and the padding.
+    const float near[3] = {org[0] + a * dir[0], org[1] + a * dir[1], org[2] + a * dir[2]};
+    if (box.lo.x <= near[0] && near[0] <= box.hi.x && box.lo.y <= near[1] &&
+        near[1] <= box.hi.y && box.lo.z <= near[2] && near[2] <= box.hi.z)
+        return true;
     SegmentBox around;
     around.set(org, dir, a, b, pad);
     return !around.misses(box);

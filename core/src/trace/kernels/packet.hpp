@@ -395,7 +395,7 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
         const float o[3] = {r.org[0][i], r.org[1][i], r.org[2][i]};
         const float d[3] = {r.dir[0][i], r.dir[1][i], r.dir[2][i]};
         const float idir[3] = {r.idir[0][i], r.idir[1][i], r.idir[2][i]};
-        const WalkStart w(tree.bounds, tree.two_scene_scale, o, d, idir);
+        const WalkStart w(tree, o, d, idir);
         for (int c = 0; c < 3; ++c) {
             r.walk[c][i] = w.org[c], r.org_err[c][i] = w.org_err[c];
             r.org[c][i] = w.test_org[c];

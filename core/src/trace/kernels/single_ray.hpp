@@ -296,7 +296,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
     // The walk runs from the ray's entry into the scene box (walk_start.hpp):
     // its t0, t1 and crossings are s = t - t_e; the hits keep the ray's t.
-    const WalkStart walk(tree.bounds, tree.two_scene_scale, ray_org, dir, idir);
+    const WalkStart walk(tree, ray_org, dir, idir);
     const double t_e = walk.t_e;
     const float* org = walk.org;
     hit.reach = walk_reach(tmax, t_e);

@@ -24,6 +24,9 @@ struct TreeView {
     // The scene's part of a general plane's crossing error (see cross_a in
     // trace_one): twice the largest coordinate of the scene box.
     float two_scene_scale;
+    // The scene box's longest side, in double: the far-ray test's scale
+    // (WalkStart, kFarTestSizes), once per tree instead of once per ray.
+    double box_extent;
     // Rays and distances go into the tree's scaled space and back.
     double scale;
     // Any general node? Trees without (kd) take the kd-only traversal.
@@ -38,6 +41,8 @@ inline TreeView make_tree_view(const Tree& tree) {
     const float scene_scale =
         std::max({std::fabs(b.lo.x), std::fabs(b.lo.y), std::fabs(b.lo.z), std::fabs(b.hi.x),
                   std::fabs(b.hi.y), std::fabs(b.hi.z)});
+    double box_extent = 0.0;  // 0 for an empty tree's inverted box, as before
+    for (int k = 0; k < 3; ++k) box_extent = std::max(box_extent, double(b.hi[k]) - double(b.lo[k]));
     return TreeView{tree.nodes.data(),
                     tree.planes.data(),
                     tree.refs.data(),
@@ -48,6 +53,7 @@ inline TreeView make_tree_view(const Tree& tree) {
                     tree.boxes.empty() ? LeafBoxes::None : tree.options.leaf_boxes,
                     tree.options.leaf_boxes != LeafBoxes::Clipped,
                     2.0f * scene_scale,
+                    box_extent,
                     tree.scale,
                     !tree.planes.empty(),
                     float(double(tree.refs.size()) /

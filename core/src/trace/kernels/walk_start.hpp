@@ -24,6 +24,7 @@
 #include <limits>
 
 #include "geometry.hpp"
+#include "trace/kernels/tree_view.hpp"
 
 #ifndef BSPLAB_ISA_NS
 #error "walk_start.hpp is compiled per instruction set: include it from the kernel headers"
@@ -113,14 +114,24 @@ struct WalkStart {
     // slack, leaf_acceptance.hpp).
     float slack;
 
-    WalkStart(const Box& bounds, float two_scene_scale, const float o[3], const float d[3],
-              const float idir[3]) {
+    WalkStart(const TreeView& tree, const float o[3], const float d[3], const float idir[3]) {
+        const Box& bounds = tree.bounds;
+        const float two_scene_scale = tree.two_scene_scale;
         // A general plane's crossing is off by a few roundings of the terms it
         // is computed from: the plane offset (at most a few scene
         // coordinates), n.org (at most |org|_1, n being unit) and s n.d (at
         // most |s| |d|_1); plus the rounding of org itself.
         constexpr float kCrossUlps = 1.0f / (1 << 20);  // 16 roundings of 2^-24
-        t_e = box_entry(bounds, o, d, idir);
+        // An origin strictly inside the box (most rays of a scene: random,
+        // ambient occlusion, interior cameras) enters it at t_e = 0 without
+        // box_entry's crossings: every face is then at a nonzero distance
+        // of the origin's sign pattern (lo - o < 0 < hi - o), so one of each
+        // axis's two crossings is <= 0 (-inf for a denormal d[k]'s infinite
+        // 1 / d[k], never NaN) and box_entry would return +0 too. On a face
+        // (a zero distance times an infinite 1 / d[k] is NaN) it decides.
+        const bool inside = bounds.lo.x < o[0] && o[0] < bounds.hi.x && bounds.lo.y < o[1] &&
+                            o[1] < bounds.hi.y && bounds.lo.z < o[2] && o[2] < bounds.hi.z;
+        t_e = inside ? 0.0 : box_entry(bounds, o, d, idir);
         const float scene = 0.5f * two_scene_scale;
         if (t_e == 0.0) {  // inside the box: the ray's own origin, exactly
             slack = kTestRel * (scene + std::max({std::fabs(o[0]), std::fabs(o[1]),
@@ -151,12 +162,9 @@ struct WalkStart {
             org_err[k] = float(err * (1.0 + 0x1p-20));
             far += kOriginRel * (std::fabs(double(o[k])) + std::fabs(t_e * double(d[k])));
         }
-        double extent = 0.0, speed = 0.0;
-        for (int k = 0; k < 3; ++k) {
-            extent = std::max(extent, double(bounds.hi[k]) - double(bounds.lo[k]));
-            speed = std::max(speed, std::fabs(double(d[k])));
-        }
-        const bool far_test = t_e * speed > kFarTestSizes * extent;
+        double speed = 0.0;
+        for (int k = 0; k < 3; ++k) speed = std::max(speed, std::fabs(double(d[k])));
+        const bool far_test = t_e * speed > kFarTestSizes * tree.box_extent;
         test_t = far_test ? t_e : 0.0;
         for (int k = 0; k < 3; ++k) test_org[k] = far_test ? org[k] : o[k];
         slack =
