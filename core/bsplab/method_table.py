@@ -28,7 +28,7 @@ COMMON_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"
 # that apply to it in `extra`).
 BSP_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"] == "bsp"}
 
-# The direction strategies of the core (core/src/build/strategies/).
+# The direction strategies of the core (core/src/builders/strategies/).
 STRATEGIES: tuple[str, ...] = tuple(_REGISTRY["strategies"])
 
 

@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "build/cell.hpp"
+#include "builders/cell.hpp"
 
 namespace bsp {
 namespace {

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <random>
 
-#include "build/clip.hpp"
+#include "builders/clip.hpp"
 
 namespace bsp {
 namespace {

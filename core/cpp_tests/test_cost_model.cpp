@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "build/cost_model.hpp"
+#include "builders/cost_model.hpp"
 
 namespace bsp {
 namespace {

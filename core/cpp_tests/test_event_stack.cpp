@@ -5,7 +5,7 @@
 
 #include <random>
 
-#include "build/kd_events.hpp"
+#include "builders/kd_events.hpp"
 
 namespace bsp {
 namespace {

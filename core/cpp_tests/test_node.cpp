@@ -5,8 +5,8 @@
 
 #include <random>
 
-#include "build/bsp_build.hpp"
-#include "build/kd_build.hpp"
+#include "builders/bsp_build.hpp"
+#include "builders/kd_build.hpp"
 #include "tree.hpp"
 
 namespace bsp {

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "build/strategies/strategy.hpp"
+#include "builders/strategies/strategy.hpp"
 #include "registry.hpp"
 
 namespace bsp {

@@ -5,8 +5,8 @@
 #include <stdexcept>
 #include <type_traits>
 
-#include "build/bsp_build.hpp"
-#include "build/kd_build.hpp"
+#include "builders/bsp_build.hpp"
+#include "builders/kd_build.hpp"
 
 namespace bsp {
 

@@ -3,7 +3,7 @@
 // runs its builder. Everything else reads the table: the bindings export it
 // (_core.registry()), the Python package builds its method table and option
 // checks from it, the Blender add-on its panel.
-// A method is a builder (build/builder.hpp) plus a direction strategy plus
+// A method is a builder (builders/builder.hpp) plus a direction strategy plus
 // the options that apply; an option is a typed, limited BuildOptions field
 // with help text.
 #pragma once
@@ -15,8 +15,8 @@
 #include <variant>
 #include <vector>
 
-#include "build/builder.hpp"
-#include "build/strategies/strategy.hpp"
+#include "builders/builder.hpp"
+#include "builders/strategies/strategy.hpp"
 #include "progress.hpp"
 #include "tree.hpp"
 

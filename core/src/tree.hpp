@@ -129,8 +129,8 @@ struct BuildOptions {
     int threads = 0;
     // The BSP family (ignored by the kd builder).
     // How the builder picks candidate directions at a node: a name in
-    // strategy_names() (build/strategies/strategy.hpp), each in its own
-    // build/strategies/*.cpp.
+    // strategy_names() (builders/strategies/strategy.hpp), each in its own
+    // builders/strategies/*.cpp.
     std::string strategy = "axes";
     int k = 3;                     // directions per node, the axes included for "+" methods
     bool plus_axes = false;        // "+": the three axes are among the K

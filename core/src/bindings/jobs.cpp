@@ -3,7 +3,7 @@
 #include <nanobind/nanobind.h>
 
 #include "bindings/bindings.hpp"
-#include "build/memory.hpp"
+#include "builders/memory.hpp"
 #include "progress.hpp"
 
 namespace bsp::bindings {

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "build/cell.hpp"
+#include "builders/cell.hpp"
 #include "tree.hpp"
 
 namespace bsp {

@@ -2,7 +2,7 @@
 builders: the sha256 of each tree's node and plane arrays and its SAH cost on
 two generated scenes (and on `room` with clipped leaf boxes, whose leaves are
 laid out differently), recorded on main before the cost model and the named
-node kinds (core/src/build/cost_model.hpp, Node in tree.hpp) replaced the inline
+node kinds (core/src/builders/cost_model.hpp, Node in tree.hpp) replaced the inline
 formulas and bare kind bits. A change that moves one plane or rounds one cost
 differently changes a hash here.
 

@@ -1,4 +1,4 @@
-#include "build/cell.hpp"
+#include "builders/cell.hpp"
 
 #include <algorithm>
 

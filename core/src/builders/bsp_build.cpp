@@ -3,18 +3,18 @@
 // so extents along any direction are exact and a triangle is split only by
 // the planes that actually cross it. Cells are convex polyhedra (cell.hpp);
 // their areas below and above a moving plane are tabulated per direction.
-#include "build/bsp_build.hpp"
+#include "builders/bsp_build.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <future>
 #include <memory>
 
-#include "build/build_tree.hpp"
-#include "build/cell.hpp"
-#include "build/cost_model.hpp"
-#include "build/strategies/directions.hpp"
-#include "build/strategies/strategy.hpp"
+#include "builders/build_tree.hpp"
+#include "builders/cell.hpp"
+#include "builders/cost_model.hpp"
+#include "builders/strategies/directions.hpp"
+#include "builders/strategies/strategy.hpp"
 #include "parallel.hpp"
 
 namespace bsp {

@@ -1,10 +1,10 @@
-#include "build/strategies/directions.hpp"
+#include "builders/strategies/directions.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <unordered_set>
 
-#include "build/strategies/strategy.hpp"
+#include "builders/strategies/strategy.hpp"
 
 namespace bsp {
 

@@ -1,5 +1,5 @@
 // BSP_wn(+): the normals of K random triangles of the node.
-#include "build/strategies/strategy.hpp"
+#include "builders/strategies/strategy.hpp"
 
 namespace bsp {
 namespace {

@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "build/memory.hpp"
+#include "builders/memory.hpp"
 
 namespace bsp {
 

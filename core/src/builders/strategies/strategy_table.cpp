@@ -6,7 +6,7 @@
 // nothing references, and with them such self-registration.
 #include <stdexcept>
 
-#include "build/strategies/strategy.hpp"
+#include "builders/strategies/strategy.hpp"
 
 namespace bsp {
 

@@ -10,7 +10,7 @@
 
 namespace bsp {
 
-// A BuildFunction (build/builder.hpp): a BSP tree over `triangles`.
+// A BuildFunction (builders/builder.hpp): a BSP tree over `triangles`.
 Tree build_bsp_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                     Progress* progress = nullptr);
 

@@ -7,7 +7,7 @@
 
 namespace bsp {
 
-// A BuildFunction (build/builder.hpp): a kd-tree over `triangles`.
+// A BuildFunction (builders/builder.hpp): a kd-tree over `triangles`.
 Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                    Progress* progress = nullptr);
 

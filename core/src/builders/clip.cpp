@@ -1,4 +1,4 @@
-#include "build/clip.hpp"
+#include "builders/clip.hpp"
 
 #include <cmath>
 #include <utility>

@@ -2,7 +2,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "build/strategies/strategy.hpp"
+#include "builders/strategies/strategy.hpp"
 
 namespace bsp {
 namespace {

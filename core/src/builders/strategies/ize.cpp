@@ -2,7 +2,7 @@
 // ("+"); the builder tries each triangle's own plane and its three edge
 // planes instead (BspBuilder::ize_planes in bsp_build.cpp, which needs the
 // node's clipped references).
-#include "build/strategies/strategy.hpp"
+#include "builders/strategies/strategy.hpp"
 
 namespace bsp {
 namespace {

@@ -1,5 +1,5 @@
 // kd: the three coordinate axes at every node, nothing else.
-#include "build/strategies/strategy.hpp"
+#include "builders/strategies/strategy.hpp"
 
 namespace bsp {
 namespace {

@@ -6,8 +6,8 @@
 #include <memory>
 #include <vector>
 
-#include "build/cost_model.hpp"
-#include "build/memory.hpp"
+#include "builders/cost_model.hpp"
+#include "builders/memory.hpp"
 #include "progress.hpp"
 #include "tree.hpp"
 

@@ -4,7 +4,7 @@
 // children's lists without re-sorting. Only triangles that straddle the plane
 // get new events: they are clipped to each child box ("perfect splits"), and
 // those few new events are sorted and merged in.
-#include "build/kd_build.hpp"
+#include "builders/kd_build.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,10 +12,10 @@
 #include <future>
 #include <memory>
 
-#include "build/build_tree.hpp"
-#include "build/clip.hpp"
-#include "build/cost_model.hpp"
-#include "build/kd_events.hpp"
+#include "builders/build_tree.hpp"
+#include "builders/clip.hpp"
+#include "builders/cost_model.hpp"
+#include "builders/kd_events.hpp"
 #include "parallel.hpp"
 
 namespace bsp {

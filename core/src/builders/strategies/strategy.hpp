@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "build/strategies/directions.hpp"
+#include "builders/strategies/directions.hpp"
 
 namespace bsp {
 

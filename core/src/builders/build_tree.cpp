@@ -1,6 +1,6 @@
-#include "build/build_tree.hpp"
+#include "builders/build_tree.hpp"
 
-#include "build/cost_model.hpp"
+#include "builders/cost_model.hpp"
 #include "parallel.hpp"
 
 #include <algorithm>
