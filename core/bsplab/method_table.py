@@ -37,7 +37,7 @@ class Method:
     name: str
     label: str
     description: str
-    builder: str                 # "kd" (Wald-Havran) or "bsp" (the one sweep builder)
+    builder: str                 # "kd" (Wald-Havran), "bsp" (the one sweep builder), "bvh"
     # Every interior node of its trees is a general node (the sweep builder
     # without ^Kd), so its traversal step is the general step.
     all_general_nodes: bool = False
@@ -46,6 +46,8 @@ class Method:
     kd_nodes: bool = False       # ^Kd: axis splits stored and traversed as kd nodes
     extra: tuple[str, ...] = ()  # BSP options that apply
     defaults: dict = field(default_factory=dict)
+    # What its trees are made of: "bvh" (boxes) or "bsp" (split planes: kd, BSP).
+    structure: str = "bsp"
 
     @property
     def params(self) -> tuple[str, ...]:
@@ -61,6 +63,7 @@ class Method:
         # K's limits only for methods that take K.
         return {"label": self.label, "description": self.description,
                 "params": list(self.params), "builder": self.builder,
+                "structure": self.structure,
                 "kd_nodes": self.kd_nodes, "plus_axes": self.plus_axes,
                 "min_k": self.min_k if takes_k else None,
                 "max_k": MAX_K if takes_k else None,
@@ -70,7 +73,8 @@ class Method:
 def _method(entry: dict) -> Method:
     return Method(entry["name"], entry["label"], entry["description"], entry["builder"],
                   entry["all_general_nodes"], entry["strategy"], entry["plus_axes"],
-                  entry["kd_nodes"], tuple(entry["options"]), dict(entry["defaults"]))
+                  entry["kd_nodes"], tuple(entry["options"]), dict(entry["defaults"]),
+                  entry["structure"])
 
 
 _MIN_K = {m["name"]: m["min_k"] for m in _REGISTRY["methods"]}

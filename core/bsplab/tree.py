@@ -9,11 +9,13 @@ from . import method_table as _methods
 
 # The per-ray counters intersect() returns unless asked for hits only, in
 # the core's argument order.
-COUNTERS = ("steps", "general_steps", "tests", "culled")
+# "box_tests" (ray-box tests) is a BVH's, 0 on kd and BSP trees.
+COUNTERS = ("steps", "general_steps", "tests", "culled", "box_tests")
 
 # The node kinds of the "kind" arrays (split_polygons, leaf_cells,
-# trace_path), by code: the core's NodeKind.
-KINDS = ("x", "y", "z", "leaf", "general")
+# trace_path), by code: the core's NodeKind. "box" is a BVH's interior node
+# (its leaves are "leaf").
+KINDS = ("x", "y", "z", "leaf", "general", "box")
 # What trace_path's "test_result" codes mean: tested and missed (or no closer
 # than the hit so far), tested and the closest hit so far, skipped by leaf
 # culling, skipped because this ray tested the triangle in an earlier leaf.
@@ -30,6 +32,12 @@ class Tree:
         self._tree = core_tree
         self.method = method
         self.options = dict(options)
+
+    @property
+    def structure(self) -> str:
+        """What the tree is made of: "bvh" (a hierarchy of boxes) or "bsp"
+        (split planes: kd and BSP trees)."""
+        return self._tree.structure
 
     @property
     def triangles(self) -> np.ndarray:
@@ -116,6 +124,23 @@ class Tree:
         out["triangles"] = polygons.fan_triangles(out["offsets"])
         return out
 
+    def node_boxes(self, max_depth: int, root=None, max_boxes: int = DRAWABLE) -> dict:
+        """A BVH's node boxes: every node at most `max_depth` levels below
+        `root` (a node index; None: the whole tree), level by level, in world
+        units. Returns "lo", "hi" (B, 3) float32 corners, per box "node",
+        "depth" (0 at `root`), "leaf" (bool); "cut" is True when `max_boxes`
+        stopped the walk (the shallow levels are then whole). A kd or BSP
+        tree has no boxes: ValueError."""
+        depth = checks.number(max_depth, "max_depth", low=0, integer=True)
+        limit = checks.number(max_boxes, "max_boxes", low=0, integer=True)
+        if self.structure != "bvh":
+            raise ValueError(f"node_boxes: a {self.method} tree has split planes, not boxes "
+                             "(use split_polygons or leaf_cells)")
+        out = _core.node_boxes(self._tree, depth, self._root(root), limit)
+        out["leaf"] = out["leaf"].astype(bool)
+        out["node"] = out["node"].astype(np.int64)
+        return out
+
     def leaf_cells(self, max_depth=None, root=None, max_cells: int = DRAWABLE) -> dict:
         """The cells of the leaves under `root` (None: the whole tree) - and,
         with `max_depth`, of the nodes at that depth below `root` instead of
@@ -146,9 +171,11 @@ class Tree:
     def trace_path(self, origin, direction, tmin=0.0, tmax=np.inf, *, cull=False) -> dict:
         """One ray's walk through the tree, as intersect() traces it: the same
         hit bit for bit ("t", "prim", "u", "v") and counts ("steps",
-        "general_steps", "tests", "culled"). Per visited node, in visit
-        order: "node", "depth", "kind" (KINDS), "t_range" (the ray's
-        [t0, t1] in its cell), "plane" (n, d; NaN for leaves). Per triangle
+        "general_steps", "tests", "culled", "box_tests"). Per visited node, in
+        visit order: "node", "depth", "kind" (KINDS), "t_range" (the ray's
+        [t0, t1] in its cell, a BVH's: in its box), "plane" (n, d; NaN for
+        leaves and BVH nodes), "box_lo", "box_hi" (a BVH node's box; NaN
+        rows on kd and BSP trees). Per triangle
         reference of the visited leaves: "test_step" (its leaf's row above),
         "test_prim", "test_result" (codes of TEST_RESULTS), "test_t" (the
         distance of a hit, else NaN)."""

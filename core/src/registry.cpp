@@ -6,6 +6,7 @@
 #include <type_traits>
 
 #include "builders/bsp_build.hpp"
+#include "builders/bvh_build.hpp"
 #include "builders/kd_build.hpp"
 
 namespace bsp {
@@ -154,6 +155,12 @@ std::vector<OptionSpec> make_option_specs() {
          .min = whole(1), .max = whole(1 << 20), .soft_max = 4096, .label = "IZE Candidates",
          .short_label = "Candidates",
          .help = "Triangles whose own and edge planes are tried per node at most"},
+        // The BVH's own. (Group "bsp" means "the methods that list it": the
+        // BVH lists bins.)
+        {NUMBER_FIELD(bins), .type = T::Int, .group = "bsp", .default_value = whole(kBvhBins),
+         .min = whole(kBvhMinBins), .max = whole(kBvhMaxBins), .soft_max = 64, .label = "Bins",
+         .short_label = "Bins",
+         .help = "Centroid bins per axis of the BVH's binned SAH"},
     };
 }
 
@@ -163,6 +170,7 @@ std::vector<OptionSpec> make_option_specs() {
 
 const Builder kKdBuilder{"kd", build_kd_tree, false};
 const Builder kSweepBuilder{"bsp", build_bsp_tree, true};
+const Builder kBvhBuilder{"bvh", build_bvh_tree, false, Structure::Bvh};
 
 // ---- The methods -------------------------------------------------------------
 
@@ -221,6 +229,10 @@ std::vector<MethodSpec> make_method_specs() {
                  kSweepBuilder, "ize", true, false, {"seed", "ize_candidates"}});
     m.push_back({"bsp_ize+kd", "BSP IZE ^Kd", "BSP_IZE whose axis splits are fast kd nodes.",
                  kSweepBuilder, "ize", true, true, Options{"seed", "ize_candidates"} + kKdCosts});
+    m.push_back({"bvh", "BVH (binned SAH)",
+                 "Binary bounding-volume hierarchy over the triangles' boxes, binned SAH "
+                 "(Wald 2007): the structure of production renderers, traced by this kernel.",
+                 kBvhBuilder, "axes", false, false, {"bins"}});
     return m;
 }
 

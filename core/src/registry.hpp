@@ -40,7 +40,7 @@ struct OptionSpec {
     std::string field;  // the BuildOptions field it sets
     void (*apply)(BuildOptions&, const OptionValue&) = nullptr;
     OptionType type = OptionType::Float;
-    std::string group;  // "common": every method has it; "bsp": the methods that list it
+    std::string group;  // "common": every method has it; "bsp": the methods that list it (BSP family, BVH)
     OptionValue default_value;
     // Closed limits unless min_open; none where the value is unbounded.
     // Kept as written (whole or real) so messages print them the same way.
@@ -54,7 +54,7 @@ struct OptionSpec {
 
 struct MethodSpec {
     std::string name, label, description;
-    Builder builder;               // kd (Wald-Havran) or bsp (the one sweep builder)
+    Builder builder;               // kd (Wald-Havran), bsp (the one sweep builder) or bvh
     std::string strategy = "axes"; // a name in strategy_names()
     bool plus_axes = false;        // "+": the three axes are among the K directions
     bool kd_nodes = false;         // ^Kd: axis splits stored and traversed as kd nodes

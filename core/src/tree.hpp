@@ -1,18 +1,29 @@
 // The flat, compact tree: 8-byte nodes in depth-first order, one shared array
-// of triangle references, and a plane array for general (non-axis) nodes.
+// of triangle references, and a plane array for general (non-axis) nodes -
+// or, for a bounding-volume hierarchy (Structure::Bvh), 32-byte box nodes
+// (bvh_node.hpp) over the same reference array.
 #pragma once
 #include <cassert>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "bvh_node.hpp"
 #include "geometry.hpp"
 
 namespace bsp {
 
 // What a node is: a kd split along x, y or z, a leaf, or a general split
-// along any plane. The kd kinds' values are their axes.
-enum class NodeKind : uint8_t { X = 0, Y = 1, Z = 2, Leaf = 3, General = 4 };
+// along any plane; or a BVH's interior box node (Box, trees of
+// Structure::Bvh only, whose leaves are Leaf). The kd kinds' values are
+// their axes.
+enum class NodeKind : uint8_t { X = 0, Y = 1, Z = 2, Leaf = 3, General = 4, Box = 5 };
+
+// What a tree is made of: split planes (kd and BSP trees: `nodes`, `planes`)
+// or a hierarchy of boxes (`bvh_nodes`). Every entry that reads a tree
+// (traversal, trace_path, the geometry queries, statistics) branches on it
+// once, at the top.
+enum class Structure : uint8_t { Bsp = 0, Bvh = 1 };
 
 constexpr bool is_kd(NodeKind k) { return k <= NodeKind::Z; }
 constexpr NodeKind kd_kind(int axis) {
@@ -142,6 +153,8 @@ struct BuildOptions {
     int cluster_iterations = 16;   // BSP_cn: k-means rounds at most
     int cluster_sample = 1024;     // BSP_cn: normals clustered per node at most
     int ize_candidates = 64;       // BSP_IZE: triangles whose planes are tried per node at most
+    // The BVH (ignored by the others): centroid bins per axis of the binned SAH.
+    int bins = 16;
     // Leaf culling with the ray segment's box (seed 002): which boxes to keep.
     LeafBoxes leaf_boxes = LeafBoxes::Triangle;
 };
@@ -167,6 +180,7 @@ struct BuildStats {
 };
 
 struct Tree {
+    Structure structure = Structure::Bsp;
     // Input numbering, degenerate ones included, multiplied by `scale`: a
     // power of two that brings the largest coordinate into [1, 2) (exact).
     // Rays are scaled the same way on the way in, distances on the way out.
@@ -175,6 +189,9 @@ struct Tree {
     std::vector<Node> nodes;
     std::vector<uint32_t> refs;
     std::vector<Plane> planes;
+    // Structure::Bvh: the box nodes (root first, children in pairs); refs[]
+    // holds the leaves' triangles, nodes and planes stay empty.
+    std::vector<BvhNode> bvh_nodes;
     // Culling boxes: per triangle (LeafBoxes::Triangle) or per reference slot
     // of refs[] (LeafBoxes::Clipped, where leaves never inline a triangle).
     std::vector<Box> boxes;

@@ -6,6 +6,7 @@
 
 #include "bindings/arrays.hpp"
 #include "bindings/bindings.hpp"
+#include "inspect/bvh_geometry.hpp"
 #include "inspect/tree_geometry.hpp"
 
 namespace bsp::bindings {
@@ -55,10 +56,27 @@ nb::dict node_cells(const Tree& tree, int max_depth, uint32_t root, size_t max_c
     return d;
 }
 
+nb::dict node_boxes(const Tree& tree, int max_depth, uint32_t root, size_t max_boxes) {
+    NodeBoxes b;
+    {
+        nb::gil_scoped_release release;
+        b = bsp::node_boxes(tree, max_depth, root, max_boxes);
+    }
+    nb::dict d;
+    d["lo"] = owned_array(std::move(b.lo), 3);
+    d["hi"] = owned_array(std::move(b.hi), 3);
+    d["node"] = owned_array(std::move(b.node));
+    d["depth"] = owned_array(std::move(b.depth));
+    d["leaf"] = owned_array(std::move(b.leaf));
+    d["cut"] = b.cut;
+    return d;
+}
+
 }  // namespace
 
 void bind_inspect(nb::module_& m) {
     m.def("split_polygons", &split_polygons, "tree"_a, "max_depth"_a, "root"_a, "max_polygons"_a);
+    m.def("node_boxes", &node_boxes, "tree"_a, "max_depth"_a, "root"_a, "max_boxes"_a);
     m.def("node_cells", &node_cells, "tree"_a, "max_depth"_a, "root"_a, "max_cells"_a);
     m.def(
         "node_at",

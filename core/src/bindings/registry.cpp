@@ -61,6 +61,7 @@ nb::dict method_dict(const MethodSpec& m) {
     d["label"] = m.label;
     d["description"] = m.description;
     d["builder"] = m.builder.name;
+    d["structure"] = structure_name(m.builder.structure);
     d["all_general_nodes"] = m.all_general_nodes();
     d["strategy"] = m.strategy;
     d["plus_axes"] = m.plus_axes;
@@ -108,6 +109,7 @@ void bind_registry(nb::module_& m) {
         .def_rw("k", &BuildOptions::k)
         .def_rw("plus_axes", &BuildOptions::plus_axes)
         .def_rw("kd_nodes", &BuildOptions::kd_nodes)
+        .def_rw("bins", &BuildOptions::bins)
         .def_rw("fixed_set", &BuildOptions::fixed_set)
         .def_rw("seed", &BuildOptions::seed)
         .def_rw("alpha", &BuildOptions::alpha)

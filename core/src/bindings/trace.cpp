@@ -31,7 +31,8 @@ using Counter = std::optional<Out<uint32_t>>;
 // hits-only path); the core rejects a mix.
 void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatIn tmin,
                FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u, Out<float> v,
-               Counter steps, Counter general_steps, Counter tests, Counter culled, int threads,
+               Counter steps, Counter general_steps, Counter tests, Counter culled,
+               Counter box_tests, int threads,
                bool cull, Progress* progress, bool packets) {
     if (packets && cull)
         throw std::invalid_argument("intersect: packets trace without culling (use cull=False)");
@@ -66,7 +67,8 @@ void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatI
                   counter(steps, "steps"),
                   counter(general_steps, "general_steps"),
                   counter(tests, "tests"),
-                  counter(culled, "culled")};
+                  counter(culled, "culled"),
+                  counter(box_tests, "box_tests")};
     nb::gil_scoped_release release;
     if (packets)
         intersect_packets(tree, rays, hits, threads, progress);
@@ -83,6 +85,9 @@ nb::dict trace_path(const Tree& tree, std::array<float, 3> o, std::array<float, 
     std::vector<int32_t> depth(n);
     std::vector<uint8_t> kind(n), result(m);
     std::vector<double> t_range(2 * n), plane(4 * n, std::nan(""));
+    // A BVH step's box in world units; NaN rows on kd and BSP trees.
+    std::vector<double> box_lo(3 * n, std::nan("")), box_hi(3 * n, std::nan(""));
+    const bool bvh = tree.structure == Structure::Bvh;
     std::vector<float> test_t(m);
     for (size_t i = 0; i < n; ++i) {
         node[i] = p.steps[i].node;
@@ -90,7 +95,15 @@ nb::dict trace_path(const Tree& tree, std::array<float, 3> o, std::array<float, 
         kind[i] = p.steps[i].kind;
         t_range[2 * i] = p.steps[i].t0;
         t_range[2 * i + 1] = p.steps[i].t1;
-        world_plane(tree, node[i], &plane[4 * i]);
+        if (!bvh) {
+            world_plane(tree, node[i], &plane[4 * i]);
+            continue;
+        }
+        const BvhNode& b = tree.bvh_nodes[node[i]];
+        for (int k = 0; k < 3; ++k) {
+            box_lo[3 * i + k] = double(b.lo[k]) / tree.scale;
+            box_hi[3 * i + k] = double(b.hi[k]) / tree.scale;
+        }
     }
     for (size_t i = 0; i < m; ++i) {
         test_step[i] = p.tests[i].step;
@@ -104,6 +117,8 @@ nb::dict trace_path(const Tree& tree, std::array<float, 3> o, std::array<float, 
     d["kind"] = owned_array(std::move(kind));
     d["t_range"] = owned_array(std::move(t_range), 2);
     d["plane"] = owned_array(std::move(plane), 4);
+    d["box_lo"] = owned_array(std::move(box_lo), 3);
+    d["box_hi"] = owned_array(std::move(box_hi), 3);
     d["test_step"] = owned_array(std::move(test_step));
     d["test_prim"] = owned_array(std::move(test_prim));
     d["test_result"] = owned_array(std::move(result));
@@ -116,6 +131,7 @@ nb::dict trace_path(const Tree& tree, std::array<float, 3> o, std::array<float, 
     d["general_steps"] = p.n_general_steps;
     d["tests"] = p.n_tests;
     d["culled"] = p.n_culled;
+    d["box_tests"] = p.n_box_tests;
     return d;
 }
 
@@ -145,7 +161,7 @@ void bind_trace(nb::module_& m) {
         "origins"_a, "directions"_a, "All finite, no zero direction (checks.rays names the bad ones).");
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(),
-          "tests"_a.none(), "culled"_a.none(), "threads"_a, "cull"_a, "progress"_a.none(),
+          "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(), "threads"_a, "cull"_a, "progress"_a.none(),
           "packets"_a = false);
     m.def("trace_path", &trace_path, "tree"_a, "origin"_a, "direction"_a, "tmin"_a, "tmax"_a,
           "cull"_a);

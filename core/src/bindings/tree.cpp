@@ -52,7 +52,9 @@ nb::dict stats(const Tree& tree) {
     d["duplication"] = live ? double(s.references) / double(live) : 0.0;
     const uint64_t full = s.leaves - s.empty_leaves;
     d["mean_leaf_size"] = full ? double(s.references) / double(full) : 0.0;
-    d["node_bytes"] = uint64_t(tree.nodes.size() * sizeof(Node));
+    d["node_bytes"] = uint64_t(tree.nodes.size() * sizeof(Node) +
+                               tree.bvh_nodes.size() * sizeof(BvhNode));
+    d["structure"] = structure_name(tree.structure);
     d["plane_bytes"] = uint64_t(tree.planes.size() * sizeof(Plane));
     static const char* kinds[] = {"none", "triangle", "clipped"};
     d["leaf_boxes"] = kinds[int(tree.options.leaf_boxes)];
@@ -80,6 +82,12 @@ nb::bytes node_bytes(const Tree& tree) {
                     tree.nodes.size() * sizeof(Node));
     out.append(reinterpret_cast<const char*>(tree.planes.data()),
                tree.planes.size() * sizeof(Plane));
+    // A BVH's nodes and the leaves' triangle order (its refs).
+    out.append(reinterpret_cast<const char*>(tree.bvh_nodes.data()),
+               tree.bvh_nodes.size() * sizeof(BvhNode));
+    if (tree.structure == Structure::Bvh)
+        out.append(reinterpret_cast<const char*>(tree.refs.data()),
+                   tree.refs.size() * sizeof(uint32_t));
     return nb::bytes(out.data(), out.size());
 }
 
@@ -104,8 +112,11 @@ void bind_tree(nb::module_& m) {
                  d["nodes"] = bytes_of(t.nodes);
                  d["refs"] = bytes_of(t.refs);
                  d["planes"] = bytes_of(t.planes);
+                 d["bvh_nodes"] = bytes_of(t.bvh_nodes);
                  return d;
              })
+        .def_prop_ro("structure", [](const Tree& t) { return structure_name(t.structure); },
+                     "\"bvh\" for a bounding-volume hierarchy, \"bsp\" for kd and BSP trees.")
         .def_ro("scale", &Tree::scale,
                 "The power of two the triangles (and bounds) were multiplied by inside the tree.")
         .def_prop_ro("bounds", [](const Tree& t) {

@@ -18,11 +18,15 @@ using BuildFunction = Tree (*)(std::vector<Triangle> triangles, const BuildOptio
                                Progress* progress);
 
 struct Builder {
-    const char* name;     // what the method table reports: "kd", "bsp"
+    const char* name;     // what the method table reports: "kd", "bsp", "bvh"
     BuildFunction build;
     // Its interior nodes are general (non-axis) nodes, axis splits included,
     // unless the method stores axis splits as kd nodes (^Kd, kd_nodes).
     bool general_nodes;
+    // What its trees are made of: split planes (kd, BSP) or boxes (BVH).
+    Structure structure = Structure::Bsp;
 };
+
+inline const char* structure_name(Structure s) { return s == Structure::Bvh ? "bvh" : "bsp"; }
 
 }  // namespace bsp

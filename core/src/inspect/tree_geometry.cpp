@@ -1,5 +1,7 @@
 #include "inspect/tree_geometry.hpp"
 
+#include "inspect/bvh_geometry.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <deque>
@@ -132,6 +134,7 @@ void PolygonSoup::add(const Vec3d* p, size_t n, double inv_scale) {
 }
 
 bool world_plane(const Tree& tree, uint32_t index, double plane[4]) {
+    if (tree.structure == Structure::Bvh) return false;  // boxes, no planes
     const Node& n = tree.nodes[index];
     if (n.is_leaf()) return false;
     if (n.is_kd()) {
@@ -148,7 +151,17 @@ bool world_plane(const Tree& tree, uint32_t index, double plane[4]) {
     return true;
 }
 
+namespace {
+
+void refuse_bvh(const Tree& tree) {
+    if (tree.structure == Structure::Bvh)
+        throw std::invalid_argument("a BVH has no split planes: use node_boxes");
+}
+
+}  // namespace
+
 SplitPolygons split_polygons(const Tree& tree, int max_depth, uint32_t root, size_t max_polygons) {
+    refuse_bvh(tree);
     if (max_depth < 0)
         throw std::invalid_argument("max_depth must be >= 0, got " + std::to_string(max_depth));
     SplitPolygons out;
@@ -188,6 +201,7 @@ SplitPolygons split_polygons(const Tree& tree, int max_depth, uint32_t root, siz
 }
 
 NodeCells node_cells(const Tree& tree, int max_depth, uint32_t root, size_t max_cells) {
+    refuse_bvh(tree);
     NodeCells out;
     const double inv_scale = 1.0 / tree.scale;
     LevelWalk walk(tree, root);
@@ -213,6 +227,7 @@ NodeCells node_cells(const Tree& tree, int max_depth, uint32_t root, size_t max_
 }
 
 NodeAt node_at(const Tree& tree, const double p[3], int max_depth) {
+    if (tree.structure == Structure::Bvh) return bvh_node_at(tree, p, max_depth);
     const double s[3] = {p[0] * tree.scale, p[1] * tree.scale, p[2] * tree.scale};
     const Box& b = tree.bounds;
     for (int k = 0; k < 3; ++k)

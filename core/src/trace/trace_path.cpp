@@ -14,6 +14,7 @@
 // Like every instantiation of the kernel headers, it lives in a namespace of
 // its own with internal linkage (see kernels/trace_kernels.cpp).
 #define BSPLAB_ISA_NS path_walk
+#include "trace/kernels/bvh_single_ray.hpp"
 #include "trace/kernels/single_ray.hpp"
 
 namespace bsp {
@@ -73,6 +74,50 @@ private:
     }
 };
 
+// The BVH kernel's hooks (BvhCountEvery), recording as PathRecord does: a
+// node's children are the pair after its `first`, one level deeper.
+class BvhPathRecord {
+public:
+    explicit BvhPathRecord(const Tree& tree) : tree_(tree) { depth_of_[0] = 0; }
+
+    void step(uint32_t index, float s0, float s1, double t_e) {
+        const float t0 = float(t_e + s0), t1 = float(t_e + s1);
+        const BvhNode& node = tree_.bvh_nodes[index];
+        const int32_t depth = depth_of_.at(index);
+        const NodeKind kind = node.is_leaf() ? NodeKind::Leaf : NodeKind::Box;
+        path_.steps.push_back({index, depth, uint8_t(kind), t0, t1});
+        ++path_.n_steps;
+        if (node.is_leaf()) return;
+        depth_of_[node.left()] = depth + 1;
+        depth_of_[node.right()] = depth + 1;
+    }
+    void box_test(uint32_t n) { path_.n_box_tests += n; }
+    void test(uint32_t prim) {
+        ++path_.n_tests;
+        tested_ = prim;
+    }
+    void hit(float t) { record(tested_, TestResult::Hit, t); }
+    void miss() { record(tested_, TestResult::Miss, kNaN); }
+
+    TracePath take(const path_walk::Closest& closest) {
+        path_.t = closest.t;
+        path_.prim = closest.prim;
+        path_.u = closest.u;
+        path_.v = closest.v;
+        return std::move(path_);
+    }
+
+private:
+    const Tree& tree_;
+    std::unordered_map<uint32_t, int32_t> depth_of_;
+    uint32_t tested_ = 0;
+    TracePath path_;
+
+    void record(uint32_t prim, TestResult result, float t) {
+        path_.tests.push_back({uint32_t(path_.steps.size() - 1), prim, result, t});
+    }
+};
+
 // The kernel's loop for this tree and culling mode, as trace_single_rays
 // picks it on the counting path.
 template <LeafBoxes kBoxes>
@@ -87,6 +132,12 @@ void walk(const TreeView& view, const Vec3& o, const Vec3& d, float tmin, float 
 TracePath record_path(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                       bool cull) {
     const TreeView view = make_tree_view(tree);
+    if (tree.structure == Structure::Bvh) {
+        BvhPathRecord record(tree);
+        path_walk::Closest closest;
+        path_walk::bvh_trace_one(view, o, d, tmin, tmax, closest, record);
+        return record.take(closest);
+    }
     PathRecord record(tree);
     path_walk::Closest closest;
     switch (cull ? tree.options.leaf_boxes : LeafBoxes::None) {

@@ -23,8 +23,8 @@ enum class TestResult : uint8_t {
 struct PathStep {
     uint32_t node;
     int32_t depth;
-    uint8_t kind;   // NodeKind
-    double t0, t1;  // the ray's range in the node's cell when visited (world units)
+    uint8_t kind;   // NodeKind (a BVH's: Box or Leaf)
+    double t0, t1;  // the ray's range in the node's cell (a BVH's: box) when visited (world units)
 };
 
 struct PathTest {
@@ -40,11 +40,12 @@ struct TracePath {
     float t;  // inf on a miss
     int32_t prim = -1;
     float u = 0, v = 0;
-    uint32_t n_steps = 0, n_general_steps = 0, n_tests = 0, n_culled = 0;
+    uint32_t n_steps = 0, n_general_steps = 0, n_tests = 0, n_culled = 0, n_box_tests = 0;
 };
 
 // The ray o + t d, tmin < t < tmax, in world units. With `cull`, leaves skip
-// triangles by their boxes as intersect(cull=True) does.
+// triangles by their boxes as intersect(cull=True) does. A BVH's walk is its
+// kernel's (kernels/bvh_single_ray.hpp), for which cull changes nothing.
 TracePath trace_path(const Tree& tree, const float o[3], const float d[3], float tmin, float tmax,
                      bool cull);
 

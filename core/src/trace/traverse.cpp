@@ -3,6 +3,7 @@
 // (kernels/, cpu_dispatch.cpp).
 #include "trace/traverse.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <stdexcept>
 
@@ -13,9 +14,11 @@ namespace bsp {
 
 namespace {
 
+constexpr int kCounterArrays = 5;
+
 int counter_arrays(const HitBatch& hits) {
     return (hits.steps != nullptr) + (hits.general_steps != nullptr) + (hits.tests != nullptr) +
-           (hits.culled != nullptr);
+           (hits.culled != nullptr) + (hits.box_tests != nullptr);
 }
 
 // Chunks of rays to threads, each chunk to the kernel. Chunks are a multiple
@@ -37,13 +40,20 @@ void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatc
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
                Progress* progress) {
     const int given = counter_arrays(hits);
-    if (given != 0 && given != 4)
-        throw std::invalid_argument("intersect: give all four counter arrays or none");
+    if (given != 0 && given != kCounterArrays)
+        throw std::invalid_argument("intersect: give all five counter arrays or none");
+    if (tree.structure == Structure::Bvh) {
+        // No culling: a BVH leaf's box is already its triangles' tight box.
+        run(selected_kernels().bvh_single_ray[given != 0], tree, rays, hits, threads, progress);
+        return;
+    }
+    // The kd/BSP kernels do no box tests.
+    if (given != 0) std::fill(hits.box_tests, hits.box_tests + rays.count, 0u);
     // One instantiation per box kind keeps the culling check out of the loop
     // when off, one per counting policy keeps the counters out of the
     // hits-only path.
     const LeafBoxes boxes = cull ? tree.options.leaf_boxes : LeafBoxes::None;
-    run(selected_kernels().single_ray[given == 4][int(boxes)], tree, rays, hits, threads,
+    run(selected_kernels().single_ray[given != 0][int(boxes)], tree, rays, hits, threads,
         progress);
 }
 
@@ -53,7 +63,10 @@ void intersect_packets(const Tree& tree, const RayBatch& rays, HitBatch& hits, i
         throw std::invalid_argument(
             "intersect: packets trace hits only; the counters are single-ray quantities "
             "(use counters=False with packets=True)");
-    run(selected_kernels().packets, tree, rays, hits, threads, progress);
+    // A BVH's packets are its single rays (the same hits; no packet kernel yet).
+    run(tree.structure == Structure::Bvh ? selected_kernels().bvh_single_ray[0]
+                                         : selected_kernels().packets,
+        tree, rays, hits, threads, progress);
 }
 
 bool rays_are_valid(const float* origins, const float* directions, size_t count) {

@@ -1,4 +1,4 @@
-// Closest-hit traversal of kd and general BSP trees over batches of rays.
+// Closest-hit traversal of kd and general BSP trees, and of BVHs, over batches of rays.
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -23,17 +23,20 @@ struct HitBatch {
     int32_t* prim;   // -1 on miss
     float* u;
     float* v;
-    // The counters: all four arrays, or all four null for the hits-only
+    // The counters: all five arrays, or all five null for the hits-only
     // path, which is compiled without any counting (same hits, bit for bit).
     uint32_t* steps = nullptr;          // nodes visited, of every kind
     uint32_t* general_steps = nullptr;  // general (plane) nodes among them
     uint32_t* tests = nullptr;          // ray-triangle tests performed
     uint32_t* culled = nullptr;         // tests skipped by the segment-box check
+    uint32_t* box_tests = nullptr;      // ray-box tests (BVH trees; 0 on kd and BSP trees)
 };
 
 // With `cull` (and boxes in the tree), a leaf skips the triangles whose box
 // misses the box of the ray's segment inside the leaf. Throws
 // std::invalid_argument when only some of the counter arrays are given.
+// A BVH tree (Structure::Bvh) takes the BVH kernel (kernels/bvh_single_ray.hpp),
+// for which cull changes nothing: its leaves' boxes are already tight.
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
                Progress* progress = nullptr);
 

@@ -138,9 +138,9 @@ def test_the_core_rejects_some_counter_arrays_without_the_others(room):
     f = [np.empty(n, np.float32) for _ in range(3)]
     prim = np.empty(n, np.int32)
     steps = np.empty(n, np.uint32)
-    with pytest.raises(ValueError, match="all four counter arrays or none"):
+    with pytest.raises(ValueError, match="all five counter arrays or none"):
         bsplab._core.intersect(tree._tree, o, d, lo, hi, f[0], prim, f[1], f[2],
-                               steps, None, None, None, 1, False, None)
+                               steps, None, None, None, None, 1, False, None)
 
 
 @pytest.mark.parametrize("scene_id", SCENES)

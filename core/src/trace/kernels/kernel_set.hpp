@@ -24,6 +24,9 @@ struct KernelSet {
     // (kernels/packet.hpp), the same hits as single_ray[0][0].
     TraceRange packets;
     int packet_width;
+    // Trees of Structure::Bvh (kernels/bvh_single_ray.hpp): [counting].
+    // Their packets trace one ray at a time through bvh_single_ray[0].
+    TraceRange bvh_single_ray[2];
 };
 
 namespace isa_sse2 { const KernelSet& kernel_set(); }

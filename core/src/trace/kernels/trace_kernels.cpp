@@ -10,6 +10,7 @@
 // CMake checks the second rule on the object files (cmake/check_kernel_objects.cmake).
 // -ffp-contract=off on every level: no fused multiply-add, so each level's
 // arithmetic - and so its hits - is bit-identical to the baseline's.
+#include "trace/kernels/bvh_single_ray.hpp"
 #include "trace/kernels/kernel_set.hpp"
 #include "trace/kernels/packet.hpp"
 #include "trace/kernels/single_ray.hpp"
@@ -31,6 +32,12 @@ __attribute__((flatten)) void packet_entry(const TreeView& view, const RayBatch&
     trace_packets(view, rays, hits, begin, end);
 }
 
+template <class Counters>
+__attribute__((flatten)) void bvh_entry(const TreeView& view, const RayBatch& rays,
+                                        const HitBatch& hits, size_t begin, size_t end) {
+    bvh_trace_rays<Counters>(view, rays, hits, begin, end);
+}
+
 constexpr LeafBoxes kNone = LeafBoxes::None, kTri = LeafBoxes::Triangle,
                     kClip = LeafBoxes::Clipped;
 
@@ -44,7 +51,8 @@ const KernelSet& kernel_set() {
          {single_ray_entry<kNone, CountEvery>, single_ray_entry<kTri, CountEvery>,
           single_ray_entry<kClip, CountEvery>}},
         packet_entry,
-        kLanes};
+        kLanes,
+        {bvh_entry<BvhCountNothing>, bvh_entry<BvhCountEvery>}};
     return set;
 }
 

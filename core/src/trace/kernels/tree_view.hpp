@@ -34,6 +34,8 @@ struct TreeView {
     // References per non-empty leaf: trees of big leaves take SIMD leaf
     // blocks on the hits-only path (single_ray.hpp, kSimdLeafMean).
     float mean_leaf_refs;
+    // Structure::Bvh: the box nodes (null for kd and BSP trees).
+    const BvhNode* bvh_nodes;
 };
 
 inline TreeView make_tree_view(const Tree& tree) {
@@ -57,7 +59,8 @@ inline TreeView make_tree_view(const Tree& tree) {
                     tree.scale,
                     !tree.planes.empty(),
                     float(double(tree.refs.size()) /
-                          double(std::max<uint64_t>(1, tree.stats.leaves - tree.stats.empty_leaves)))};
+                          double(std::max<uint64_t>(1, tree.stats.leaves - tree.stats.empty_leaves))),
+                    tree.structure == Structure::Bvh ? tree.bvh_nodes.data() : nullptr};
 }
 
 }  // namespace bsp

@@ -1,0 +1,212 @@
+// The BVH's single-ray kernel (trees of Structure::Bvh): ordered traversal
+// of the binary box hierarchy - at an interior node both children's boxes
+// are tested, the nearer entered first, the other pushed with its entry
+// distance - with early exit, the same walk start, the same watertight
+// triangle test and the same tie rule as the kd/BSP kernel (single_ray.hpp),
+// so that its hits are the kd tree's bit for bit wherever both are right.
+//
+// The box test is the slab test of the walk's crossings (walk_start.hpp):
+// every face's crossing widened by the axis crossing error of the ray's
+// range in the scene box, the origin's error and the triangle test's
+// displacement included, the comparisons closed. So a box's range holds the
+// exact ray's range in it - a ray along a box face, or through an edge a
+// box shares with its sibling, enters it - and no hit is lost at a box face
+// (the role of Ize's 1 + 2 gamma padding, "Robust BVH Ray Traversal", 2013).
+// A ray parallel to a slab (1 / d = inf) in its face plane gives NaN there,
+// which the max/min below ignore: the closed slab holds it.
+//
+// Leaf culling does not apply: a BVH leaf's box is already the tight box of
+// its triangles, so cull=True is the same traversal (the same answers). A
+// leaf accepts a hit as the kd tree's leaves do with triangle boxes
+// (leaf_acceptance.hpp): only where its walk parameter lies near the
+// triangle's own box, which rejects the far-off distances of rays lying in
+// a triangle's plane exactly as the kd tree rejects them.
+//
+// Included by kernels/trace_kernels.cpp (and trace_path.cpp) inside one
+// instruction-set level's namespace, like single_ray.hpp.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "trace/kernels/single_ray.hpp"
+
+#ifndef BSPLAB_ISA_NS
+#error "bvh_single_ray.hpp is compiled per instruction set: include it from trace_kernels.cpp"
+#endif
+
+namespace bsp::BSPLAB_ISA_NS {
+namespace {
+
+// The BVH's counters (the hooks of single_ray.hpp's CountEvery, plus box
+// tests): steps are the nodes visited, box_tests the ray-box tests (two per
+// interior node visited, one for the root), tests the triangle tests.
+struct BvhCountEvery {
+    uint32_t steps = 0, tests = 0, box_tests = 0;
+    void step(uint32_t /*node*/, float /*s0*/, float /*s1*/, double /*t_e*/) { ++steps; }
+    void box_test(uint32_t n) { box_tests += n; }
+    void test(uint32_t /*prim*/) { ++tests; }
+    void hit(float /*t*/) {}
+    void miss() {}
+    void store(const HitBatch& hits, size_t i) const {
+        hits.steps[i] = steps;
+        hits.general_steps[i] = 0;
+        hits.tests[i] = tests;
+        hits.culled[i] = 0;
+        hits.box_tests[i] = box_tests;
+    }
+};
+
+struct BvhCountNothing {
+    void step(uint32_t, float, float, double) {}
+    void box_test(uint32_t) {}
+    void test(uint32_t) {}
+    void hit(float) {}
+    void miss() {}
+    void store(const HitBatch&, size_t) const {}
+};
+
+// What the box test needs of a ray: the walk origin, 1 / d, each axis's
+// crossing error, and which corner each axis enters by.
+struct BvhRay {
+    float org[3], idir[3], err[3];
+    bool neg[3];  // d[k] < 0 (or -0): enters by the high face
+
+    // The ray's range [enter, exit] in box `n` within [s0, s1]; false when
+    // it misses. std::max(s, t) keeps s where t is NaN (a ray in a face
+    // plane, parallel to it), std::min likewise.
+    bool clip(const BvhNode& n, float s0, float s1, float& enter, float& exit) const {
+        const float nx = neg[0] ? n.hi.x : n.lo.x, fx = neg[0] ? n.lo.x : n.hi.x;
+        const float ny = neg[1] ? n.hi.y : n.lo.y, fy = neg[1] ? n.lo.y : n.hi.y;
+        const float nz = neg[2] ? n.hi.z : n.lo.z, fz = neg[2] ? n.lo.z : n.hi.z;
+        const float tnx = (nx - org[0]) * idir[0] - err[0], tfx = (fx - org[0]) * idir[0] + err[0];
+        const float tny = (ny - org[1]) * idir[1] - err[1], tfy = (fy - org[1]) * idir[1] + err[1];
+        const float tnz = (nz - org[2]) * idir[2] - err[2], tfz = (fz - org[2]) * idir[2] + err[2];
+        enter = std::max(std::max(std::max(s0, tnx), tny), tnz);
+        exit = std::min(std::min(std::min(s1, tfx), tfy), tfz);
+        return enter <= exit;
+    }
+};
+
+// Entries of the traversal stack: one per level of the tree at most
+// (kBvhMaxDepth, builders/bvh_build.hpp, which the builder enforces).
+constexpr int kBvhStack = 64;
+
+// One ray through the BVH (see the file's comment); the walk and the hit
+// bookkeeping are single_ray.hpp's.
+template <class Counters>
+void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+                   Closest& hit, Counters& count) {
+    hit.t = tmax;
+    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
+    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
+    const WalkStart walk(tree, ray_org, dir, idir);
+    const double t_e = walk.t_e;
+    const float* org = walk.org;
+    hit.reach = walk_reach(tmax, t_e);
+    const float s_lo = walk_lower(tmin, t_e), s_hi = walk_upper(tmax, t_e);
+    const BvhNode* nodes = tree.bvh_nodes;
+    float t0 = s_lo, t1 = s_hi;
+    count.box_test(1);
+    if (!clip_to_box(nodes[0].box(), org, idir, dir, walk.org_err, t0, t1)) return;
+    BvhRay ray;
+    axis_crossing_errors(walk, t0, t1, ray.err);
+    for (int k = 0; k < 3; ++k) {
+        ray.org[k] = org[k];
+        ray.idir[k] = idir[k];
+        ray.neg[k] = std::signbit(dir[k]);
+    }
+    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
+                          walk.test_t);
+    const float pad = tree.cull_pad + walk.slack;
+    const uint32_t* refs = tree.refs;
+    const Triangle* tris = tree.tris;
+    StackEntry stack[kBvhStack];
+    int top = 0;
+    uint32_t index = 0;
+    for (;;) {
+        const BvhNode& node = nodes[index];
+        count.step(index, t0, t1, t_e);
+        if (!node.is_leaf()) {
+            const uint32_t left = node.left();
+            const float limit = std::min(s_hi, hit.reach);
+            float a0, a1, b0, b1;
+            const bool ha = ray.clip(nodes[left], s_lo, limit, a0, a1);
+            const bool hb = ray.clip(nodes[left + 1], s_lo, limit, b0, b1);
+            count.box_test(2);
+            if (ha && hb) {
+                // The nearer first; the other later, unless a hit ends the ray first.
+                if (b0 < a0) {
+                    stack[top++] = {left, a0, a1};
+                    index = left + 1;
+                    t0 = b0;
+                    t1 = b1;
+                } else {
+                    stack[top++] = {left + 1, b0, b1};
+                    index = left;
+                    t0 = a0;
+                    t1 = a1;
+                }
+                continue;
+            }
+            if (ha || hb) {
+                index = ha ? left : left + 1;
+                t0 = ha ? a0 : b0;
+                t1 = ha ? a1 : b1;
+                continue;
+            }
+        } else {
+            const uint32_t n = node.count();
+            for (uint32_t i = 0; i < n; ++i) {
+                const uint32_t p = refs[node.first + i];
+                count.test(p);
+                TriangleHit th;
+                const Triangle& tri = tris[p];
+                if (intersect_triangle(sray, tri, tmin, hit.t, th, int32_t(p) < hit.prim) &&
+                    leaf_accepts(tri.bounds(), org, dir, t0, std::min(t1, hit.reach), th.t, t_e,
+                                 pad)) {
+                    count.hit(th.t);
+                    hit.take(th.t, p, th.u, th.v, t_e);
+                } else {
+                    count.miss();
+                }
+            }
+        }
+        if (!pop_cell(stack, top, hit.reach, index, t0, t1)) break;
+    }
+}
+
+// Rays [begin, end) one by one (kernel_set.hpp), in and out of the tree's
+// scaled space as single_ray.hpp's trace_rays does.
+template <class Counters>
+void bvh_trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                    size_t begin, size_t end) {
+    const double scale = view.scale, inv_scale = 1.0 / view.scale;
+    for (size_t i = begin; i < end; ++i) {
+        const float* o = rays.origins + 3 * i;
+        const float* d = rays.directions + 3 * i;
+        Closest c;
+        Counters count;
+        const float tmin = rays.tmin[i * rays.tmin_stride];
+        const float tmax = rays.tmax[i * rays.tmax_stride];
+        if (scale == 1.0) {
+            bvh_trace_one(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c,
+                          count);
+        } else {
+            const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+            bvh_trace_one(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale),
+                          float(tmax * scale), c, count);
+            c.t = float(c.t * inv_scale);
+            if (!(c.t < tmax)) c.prim = -1;
+        }
+        const bool is_hit = c.prim >= 0;
+        hits.t[i] = is_hit ? c.t : kInf;
+        hits.prim[i] = c.prim;
+        hits.u[i] = is_hit ? c.u : 0.0f;
+        hits.v[i] = is_hit ? c.v : 0.0f;
+        count.store(hits, i);
+    }
+}
+
+}  // namespace
+}  // namespace bsp::BSPLAB_ISA_NS
