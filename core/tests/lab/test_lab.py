@@ -336,13 +336,13 @@ def test_every_hits_only_tracer_has_its_columns():
             assert {f"{name}_s", f"{name}_unexplained"} <= set(ROW_FIELDS)
 
 
-def test_the_shipped_bench_spec_times_kd_and_the_kd_node_trees_on_every_path():
+def test_the_shipped_bench_spec_times_kd_the_kd_node_trees_and_the_bvh_on_every_path():
     from bsplab.lab import benchmarks
     from bsplab.method_table import METHODS
     spec = benchmarks.benchmark_spec("bench", ["room"])
     assert spec.hits_only and spec.repetitions >= 5
-    assert spec.methods[0] == "kd" and len(spec.methods) > 1
-    assert all(METHODS[m].kd_nodes for m in spec.methods[1:])
+    assert spec.methods[0] == "kd" and spec.methods[-1] == "bvh" and len(spec.methods) > 2
+    assert all(METHODS[m].kd_nodes for m in spec.methods[1:-1])
 
 
 def test_bench_family_has_every_method_and_k_against_kd(tmp_path):
