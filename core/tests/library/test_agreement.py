@@ -94,10 +94,13 @@ def test_hits_agree_with_embree(scene_id, method, k):
     hits = tree.intersect(o, d, cull=True)
     check_agreement(tris, o, d, hits, ref)
     check_agreement(tris, o, d, tree.intersect(o, d, counters=False), ref)
-    assert hits["culled"].sum() > 0 or scene_id == "gen:room"
+    # A BVH's leaves are their triangles' tight boxes: nothing to cull.
+    bvh = METHODS[method]["structure"] == "bvh"
+    assert (hits["culled"].sum() == 0) if bvh else (hits["culled"].sum() > 0 or
+                                                     scene_id == "gen:room")
     miss = hits["prim"] < 0
     assert np.isinf(hits["t"][miss]).all() and (hits["t"][~miss] > 0).all()
-    if not METHODS[method]["kd_nodes"] and method != "kd":
+    if not METHODS[method]["kd_nodes"] and method != "kd" and not bvh:
         assert hits["general_steps"].sum() > 0  # every node is traversed as general
 
 

@@ -51,7 +51,10 @@ def test_culling_never_loses_the_closest_hit(method, boxes):
     for prim in (on["prim"][tie], off["prim"][tie]):
         dist, scale = oracle.edge_distance(tris, prim, o[tie], d[tie])
         assert (dist >= -8 * np.finfo(np.float32).eps * scale).all()
-    assert on["culled"].sum() > 0 and off["culled"].sum() == 0
+    if tree.structure == "bvh":  # its leaves' boxes are tight: cull is a no-op
+        assert on["culled"].sum() == off["culled"].sum() == 0
+    else:
+        assert on["culled"].sum() > 0 and off["culled"].sum() == 0
     assert on["tests"].sum() <= off["tests"].sum()
     if oracle.available():
         ref = oracle.EmbreeTracer(tris).intersect(o, d)
