@@ -391,7 +391,7 @@ CASES = [
     cli_case("agree_unknown_method", ["agree", "--methods", "octree"],
              "error: unknown method 'octree'; known methods: kd, rbsp, rbsp+kd, bsp_random, "
              "bsp_random+, bsp_random+kd, bsp_wn, bsp_wn+, bsp_wn+kd, bsp_cn, bsp_cn+, "
-             "bsp_cn+kd, bsp_ize, bsp_ize+kd"),
+             "bsp_cn+kd, bsp_ize, bsp_ize+kd, bvh"),
     cli_case("verdict_missing_results",
              ["verdict", "--results", "/nonexistent.csv", "--skip-trace", "--out", "{d}/x.md"],
              "error: --results /nonexistent.csv: no such results file (run `python -m bsplab "
