@@ -297,7 +297,7 @@ def main(argv=None) -> int:
     b = sub.add_parser("bench", help="build and trace time against Embree")
     b.add_argument("--scenes", nargs="*", help="default: generated + all shared meshes")
     b.add_argument("--methods", nargs="*",
-                   help="default: kd, bsp_cn+kd, bsp_wn+kd (K = 8: the spec's ks)")
+                   help="default: kd, bsp_cn+kd, bsp_wn+kd (K = 8: the spec's ks), bvh")
     b.add_argument("--side", type=whole(1), help="primary rays: side x side (default 512)")
     b.add_argument("--rays", type=whole(1), help="random rays (default 250,000)")
     b.add_argument("--repeats", type=whole(1), help="paired rounds (default 5)")
