@@ -5,6 +5,7 @@ import bpy
 
 from ..sidebar import BSPLabSubPanel
 from . import draw as overlay_draw
+from . import geometry
 
 KIND_COLOUR_PROPS = (("colour_x", "x"), ("colour_y", "y"), ("colour_z", "z"),
                      ("colour_general", "general"))
@@ -35,10 +36,14 @@ class BSPLAB_PT_overlay(BSPLabSubPanel, bpy.types.Panel):
         col.prop(props, "scope")
         if props.scope == "cursor":
             col.prop(props, "subtree_depth")
-        col.prop(props, "colour_by")
-        draw_legend(col, props)
-        col.prop(props, "alpha")
-        col.prop(props, "cells")
+        if geometry.is_bvh(tree):
+            # Boxes by depth: a BVH has no kinds to colour and no cells.
+            col.label(text="BVH: boxes, depth 0 orange \u2192 {} blue".format(props.max_depth))
+        else:
+            col.prop(props, "colour_by")
+            draw_legend(col, props)
+            col.prop(props, "alpha")
+            col.prop(props, "cells")
         col.prop(props, "cap")
 
         if props.show and tree is not None:
