@@ -144,11 +144,20 @@ def headline(scenes: list[dict]) -> str:
     if share is None:
         return text + " kd is not slower than Embree here: there is no gap to split."
     kernel = 1 - share
+    split_text = (f" Of kd's gap to Embree (on a log scale), {100 * share:.0f} % is the "
+                  f"structure (kd ÷ our BVH) and {100 * kernel:.0f} % the kernel (our BVH ÷ "
+                  "Embree)")
+    if share < 0:
+        # kd's planes beat our BVH on our kernel: the kernel is more than the gap.
+        return (text + split_text + ": none of it is the structure, since kd's planes beat "
+                "our binary BVH on the same kernel; the gap is the kernel's (and the width "
+                "of Embree's nodes), and more.")
+    if share > 1:
+        return (text + split_text + ": all of it is the structure, since our BVH is faster "
+                "than Embree.")
     lead = ("mostly the kernel" if kernel > 0.5 else "mostly the structure" if share > 0.5
             else "the structure and the kernel alike")
-    return (text + f" Of kd's gap to Embree (on a log scale), {100 * share:.0f} % is the "
-            f"structure (kd ÷ our BVH) and {100 * kernel:.0f} % the kernel (our BVH ÷ Embree): "
-            f"{lead}.")
+    return text + split_text + f": {lead}."
 
 
 def _f(x, digits: int = 2) -> str:
@@ -197,7 +206,9 @@ def section(gap: dict | None, number: int) -> list[str]:
         "is 8 wide with an 8-wide SIMD kernel. So `our BVH ÷ Embree` prices our kernel and "
         "layout against Embree's on the same kind of structure, and `kd ÷ our BVH` the "
         "structure on our kernel; their product is `kd ÷ Embree`, round by round. The "
-        "shares split log(kd ÷ Embree). `rays BVH ≠ kd` counts rays on which the two answer "
+        "shares split log(kd ÷ Embree): a negative structure share means kd's planes are "
+        "faster than our BVH on our kernel (the kernel then accounts for more than the whole "
+        "gap); `—` where kd is not slower than Embree. `rays BVH ≠ kd` counts rays on which the two answer "
         "differently (a triangle or a distance; ties of equal t go to the smallest index in "
         "both).", "",
         *table(gap["scenes"])]

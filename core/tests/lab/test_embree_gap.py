@@ -65,6 +65,11 @@ def test_headline_follows_the_figures():
     same = _workload(embree=[1.0], kd=[2.0], wn=[1.5], cn=[1.6], bvh=[1.0])
     assert "100 % is the structure" in embree_gap.headline(_record({"primary": same})["scenes"])
     assert "mostly the structure" in embree_gap.headline(_record({"primary": same})["scenes"])
+    # kd's planes faster than our BVH: none of the gap is the structure.
+    planes = _workload(embree=[1.0], kd=[2.0], wn=[1.5], cn=[1.6], bvh=[3.0])
+    text = embree_gap.headline(_record({"primary": planes})["scenes"])
+    share = 100 * math.log(2.0 / 3.0) / math.log(2.0)
+    assert f"{share:.0f} % is the structure" in text and "none of it is the structure" in text
     # kd faster than Embree: nothing to split, and the sentence says so.
     fast = _workload(embree=[2.0], kd=[1.0], wn=[1.5], cn=[1.6], bvh=[1.0])
     text = embree_gap.headline(_record({"primary": fast})["scenes"])
