@@ -16,6 +16,12 @@ import math
 import numpy as np
 
 KINDS = ("box", "tilted_box", "grid", "sliver", "degenerate", "soup", "duplicate", "fan")
+# Parts made for BVHs, whose nodes are the boxes of their triangles: many
+# overlapping axis-aligned boxes, some flat (zero thickness: two quads in
+# one plane) or sharing faces, and axis-aligned quads in a few planes
+# (zero-thickness triangle boxes, coplanar neighbours). The BVH's fuzz test
+# (test_fuzz.py) draws them with the others.
+BOX_KINDS = ("boxes", "quads")
 
 
 def _grid_point(p) -> np.ndarray:
@@ -101,7 +107,33 @@ def _part(p: dict, done: list[np.ndarray]) -> np.ndarray:
         rim = c + 0.5 * np.stack([np.cos(ang), np.sin(ang), np.zeros_like(ang)], 1)
         tris = np.stack([np.repeat(c[None], n, 0), rim[:-1], rim[1:]], 1)
         return tris @ _rotation(rng).T if p.get("seed", 0) % 2 else tris
-    raise ValueError(f"unknown part kind {kind!r}; known: {', '.join(KINDS)}")
+    if kind == "boxes":
+        n = 1 + p["count"] % 12
+        a = _grid_point(p["at"]) + rng.integers(-8, 8, (n, 3)) / 8
+        b = a + rng.integers(0, 6, (n, 3)) / 8
+        flat = rng.random(n) < 0.3
+        b[flat, rng.integers(0, 3)] = a[flat, 0]  # some collapse to a plane
+        out = []
+        for lo, hi in zip(np.minimum(a, b), np.maximum(a, b)):
+            out.append(_box_tris(lo, hi))
+        return np.concatenate(out)
+    if kind == "quads":
+        n = 1 + p["count"] % 16
+        axis = rng.integers(0, 3, n)
+        o = _grid_point(p["at"]) + rng.integers(-4, 4, (n, 3)) / 4
+        size = rng.integers(1, 5, (n, 2)) / 4
+        tris = []
+        for k in range(n):
+            u, v = (axis[k] + 1) % 3, (axis[k] + 2) % 3
+            a = o[k].copy()
+            b, c, d = a.copy(), a.copy(), a.copy()
+            b[u] += size[k, 0]
+            c[u] += size[k, 0]
+            c[v] += size[k, 1]
+            d[v] += size[k, 1]
+            tris += [[a, b, c], [a, c, d]]
+        return np.array(tris)
+    raise ValueError(f"unknown part kind {kind!r}; known: {', '.join(KINDS + BOX_KINDS)}")
 
 
 def build_scene(spec: list[dict], scale_exp: int = 0, offset=(0, 0, 0)) -> np.ndarray:

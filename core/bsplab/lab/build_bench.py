@@ -9,7 +9,10 @@ of the whole call: `bsplab.build` with its input checks, and the
 With `sweeps`, the same rounds also build the two BSP trees whose build
 time the issue bounds as a multiple of kd's: the ^Kd sweep at K = 8
 (bsp_wn+kd) and BSP_IZE^Kd (bsp_ize+kd), both on `threads` threads and
-reported over the kd build on as many."""
+reported over the kd build on as many.
+
+Every run also builds our BVH (method "bvh", issue 23) on `threads` threads,
+reported over Embree's build (the issue's target: at most 1.0x)."""
 
 from __future__ import annotations
 
@@ -38,6 +41,7 @@ def build_row(name: str, triangles, rounds: int, threads: int, sweeps: bool = Fa
         "kd_1": Tracer(lambda: bsplab.build(triangles, "kd", threads=1)),
         many: Tracer(lambda: bsplab.build(triangles, "kd", threads=threads)),
         "embree": Tracer(lambda: oracle.EmbreeTracer(triangles)),
+        "bvh": Tracer(lambda: bsplab.build(triangles, "bvh", threads=threads)),
     }
     if sweeps:
         for key, (method, options) in SWEEP_BUILDS.items():
@@ -55,6 +59,9 @@ def build_row(name: str, triangles, rounds: int, threads: int, sweeps: bool = Fa
         "kd_1_per_embree": times.ratio("kd_1", "embree"),
         "kd_n_per_embree": times.ratio(many, "embree"),
         "sah_cost": stats["sah_cost"],
+        "bvh_s": times.median("bvh"),
+        "bvh_per_embree": times.ratio("bvh", "embree"),
+        "bvh_sah_cost": times.results["bvh"].stats["sah_cost"],
         "rounds": rounds,
     }
     if sweeps:
@@ -81,8 +88,9 @@ def build_markdown(rows: list[dict], command: str) -> str:
         f"`{command}`):",
         "",
         f"| scene | triangles | kd, 1 thread | kd, {threads} threads | Embree | "
-        f"kd 1 / Embree | kd {threads} / Embree | kd SAH cost |" + extra_head,
-        "|---|---:|---:|---:|---:|---:|---:|---:|" + ("---:|" * 4 if sweeps else ""),
+        f"kd 1 / Embree | kd {threads} / Embree | kd SAH cost | BVH, {threads} | "
+        f"BVH / Embree | BVH SAH cost |" + extra_head,
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|" + ("---:|" * 4 if sweeps else ""),
     ]
     for r in rows:
         extra = (f" {r['wn8_s']:.3f} s | {r['wn8_per_kd']:.2f}× | {r['ize_s']:.3f} s | "
@@ -90,7 +98,8 @@ def build_markdown(rows: list[dict], command: str) -> str:
         lines.append(f"| {r['scene']} | {r['triangles']:,} | {r['kd_1_s']:.3f} s | "
                      f"{r['kd_n_s']:.3f} s | {r['embree_s']:.3f} s | "
                      f"{r['kd_1_per_embree']:.2f}× | {r['kd_n_per_embree']:.2f}× | "
-                     f"{r['sah_cost']:.2f} |" + extra)
+                     f"{r['sah_cost']:.2f} | {r['bvh_s']:.3f} s | {r['bvh_per_embree']:.2f}× | "
+                     f"{r['bvh_sah_cost']:.2f} |" + extra)
     return "\n".join(lines) + "\n"
 
 
@@ -115,7 +124,8 @@ def bench_build(scene_names: list[str] | None = None, rounds: int = 3, threads: 
         rows.append(build_row(name, triangles, rounds, threads, sweeps))
         r = rows[-1]
         log(f"{name}: kd {r['kd_1_s']:.3f} s (1 thread), {r['kd_n_s']:.3f} s ({threads}), "
-            f"Embree {r['embree_s']:.3f} s: {r['kd_n_per_embree']:.2f}x" +
+            f"Embree {r['embree_s']:.3f} s: {r['kd_n_per_embree']:.2f}x; "
+            f"bvh {r['bvh_s']:.3f} s: {r['bvh_per_embree']:.2f}x Embree" +
             (f"; bsp_wn+kd K=8 {r['wn8_per_kd']:.2f}x kd, bsp_ize+kd {r['ize_per_kd']:.2f}x kd"
              if sweeps else ""))
     return rows

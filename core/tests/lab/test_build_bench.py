@@ -23,20 +23,24 @@ def test_rows_hold_paired_medians_and_the_trees_cost(monkeypatch):
     r = rows[0]
     assert r["triangles"] == len(scenes.load("room"))
     assert r["threads"] == 2 and r["rounds"] == 3
-    for key in ("kd_1_s", "kd_n_s", "embree_s", "kd_1_per_embree", "kd_n_per_embree"):
+    for key in ("kd_1_s", "kd_n_s", "embree_s", "kd_1_per_embree", "kd_n_per_embree",
+                "bvh_s", "bvh_per_embree"):
         assert r[key] > 0, key
     # The SAH cost is the tree's, which the build decides alone.
     assert r["sah_cost"] == bsplab.build(scenes.load("room"), "kd").stats["sah_cost"]
+    assert r["bvh_sah_cost"] == bsplab.build(scenes.load("room"), "bvh").stats["sah_cost"]
 
 
 def test_markdown_has_a_row_per_scene():
     rows = [{"scene": s, "triangles": 1000, "threads": 2, "kd_1_s": 0.2, "kd_n_s": 0.1,
              "embree_s": 0.05, "kd_1_per_embree": 4.0, "kd_n_per_embree": 2.0,
-             "sah_cost": 12.5, "rounds": 3} for s in ("a", "b")]
+             "sah_cost": 12.5, "bvh_s": 0.04, "bvh_per_embree": 0.8, "bvh_sah_cost": 30.0,
+             "rounds": 3} for s in ("a", "b")]
     text = build_bench.build_markdown(rows, "cmd")
     lines = [line for line in text.splitlines() if line.startswith("| ")]
     assert len(lines) == 3  # the header and one row per scene
-    assert "| a | 1,000 | 0.200 s | 0.100 s | 0.050 s | 4.00× | 2.00× | 12.50 |" in lines
+    assert ("| a | 1,000 | 0.200 s | 0.100 s | 0.050 s | 4.00× | 2.00× | 12.50 | 0.040 s | "
+            "0.80× | 30.00 |") in lines
     assert "kd 2 / Embree" in lines[0]
 
 

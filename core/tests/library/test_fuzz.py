@@ -36,8 +36,8 @@ small = st.integers(0, 40)
 
 
 @st.composite
-def part(draw) -> dict:
-    kind = draw(st.sampled_from(fuzz.KINDS))
+def part(draw, kinds=fuzz.KINDS) -> dict:
+    kind = draw(st.sampled_from(kinds))
     p = {"kind": kind, "seed": draw(st.integers(0, 2**16))}
     if kind == "box":
         p.update(a=list(draw(point)), b=list(draw(point)))
@@ -95,6 +95,24 @@ def check_spec(case: dict) -> None:
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(scene_specs)
 def test_every_method_agrees_with_embree_on_random_scenes(case):
+    check_spec(case)
+
+
+# The BVH on scenes with its own parts too (fuzz.BOX_KINDS: overlapping and
+# flat boxes, axis-aligned quads), at every scale and offset.
+box_scene_specs = st.fixed_dictionaries({
+    "parts": st.lists(part(fuzz.KINDS + fuzz.BOX_KINDS), min_size=1, max_size=5),
+    "scale_exp": st.integers(-3, 3),
+    "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
+    "method": st.just("bvh"),
+    "k": st.just(1),
+})
+
+
+@settings(max_examples=20_000 if LONG else 60, deadline=None, derandomize=not LONG,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(box_scene_specs)
+def test_the_bvh_agrees_with_embree_on_random_box_scenes(case):
     check_spec(case)
 
 

@@ -92,6 +92,7 @@ def check_paths(tree, o, d, tmax, label: str, trace_paths: int = 0) -> None:
                                                     not np.isfinite(ref["t"][i])), (
                 label, "trace_path", cull, i, p["t"], p["prim"], ref["t"][i], ref["prim"][i])
             assert p["steps"] == ref["steps"][i] and p["tests"] == ref["tests"][i], (label, i)
+            assert p["box_tests"] == ref["box_tests"][i], (label, i)
 
 
 def build(tris, method: str, **kw):
@@ -118,7 +119,7 @@ def test_clipped_boxes_agree_too(method):
         check_paths(tree, o, d, tmax, f"tilted_fan clipped {method} {name}")
 
 
-@pytest.mark.parametrize("method", ["kd", "bsp_wn+kd", "bsp_random"])
+@pytest.mark.parametrize("method", ["kd", "bsp_wn+kd", "bsp_random", "bvh"])
 def test_every_path_agrees_on_a_shared_mesh(method):
     shared = [s for s in SCENE_IDS if s.startswith("shared:")]
     if not shared:

@@ -87,12 +87,12 @@ def test_families_agree_on_generated_scenes(scene_id, method):
 
 
 # The default run: meshes full of walls, floors and faces in the scene box's
-# planes, with kd, a ^Kd tree and a tree of general nodes only. The full
+# planes, with kd, a ^Kd tree, a tree of general nodes only and the BVH. The full
 # matrix (BSPLAB_TEST_MATRIX=full) runs every method on every shared mesh.
 FULL = os.environ.get("BSPLAB_TEST_MATRIX") == "full"
 SHARED_CASES = [(f"shared:{p.stem}", m) for p in SHARED
                 if FULL or p.stem in ("sponza_dabrovic", "sibenik", "lost_empire")
-                for m in (METHODS if FULL else ("kd", "bsp_wn+kd", "bsp_cn+"))]
+                for m in (METHODS if FULL else ("kd", "bsp_wn+kd", "bsp_cn+", "bvh"))]
 
 
 @pytest.mark.parametrize("scene_id, method", SHARED_CASES)
