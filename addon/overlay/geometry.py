@@ -129,15 +129,22 @@ def count_note(shown, cut, total, total_cut, cap, noun):
     return f"showing {shown:,} of {of} {noun} (cut at {cap:,})"
 
 
-def _split_planes(tree, settings, root):
-    polygons = tree.split_polygons(settings.max_depth, root=root, max_polygons=settings.cap)
-    total, total_cut = len(polygons["node"]), polygons["cut"]
-    if polygons["cut"]:
+def _capped_walk(query, settings, root):
+    """`query(max_depth, root, cap)` (the core's split_polygons or
+    node_boxes) at the settings' cap, how many there are in all and whether
+    that count was cut too."""
+    found = query(settings.max_depth, root, settings.cap)
+    total, total_cut = len(found["node"]), found["cut"]
+    if found["cut"]:
         # How many there would be: a second walk, bounded, only when cut.
-        counted = tree.split_polygons(settings.max_depth, root=root,
-                                      max_polygons=COUNT_FACTOR * settings.cap)
+        counted = query(settings.max_depth, root, COUNT_FACTOR * settings.cap)
         total, total_cut = len(counted["node"]), counted["cut"]
-    return polygons, total, total_cut
+    return found, total, total_cut
+
+
+def _split_planes(tree, settings, root):
+    return _capped_walk(lambda depth, node, cap: tree.split_polygons(
+        depth, root=node, max_polygons=cap), settings, root)
 
 
 def _cells(tree, settings, root):
@@ -170,13 +177,8 @@ BVH_NOTE = "a BVH: its node boxes, coloured by depth (no planes, no cells)"
 
 
 def _node_boxes(tree, settings, root):
-    found = tree.node_boxes(settings.max_depth, root=root, max_boxes=settings.cap)
-    total, total_cut = len(found["node"]), found["cut"]
-    if found["cut"]:
-        counted = tree.node_boxes(settings.max_depth, root=root,
-                                  max_boxes=COUNT_FACTOR * settings.cap)
-        total, total_cut = len(counted["node"]), counted["cut"]
-    return found, total, total_cut
+    return _capped_walk(lambda depth, node, cap: tree.node_boxes(
+        depth, root=node, max_boxes=cap), settings, root)
 
 
 def box_geometry(tree, settings, root, root_depth):
