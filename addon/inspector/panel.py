@@ -65,7 +65,6 @@ def draw_step(layout, cells):
 
 class BSPLAB_PT_inspector(BSPLabSubPanel, bpy.types.Panel):
     bl_label = "Ray Inspector"
-    bl_idname = "BSPLAB_PT_inspector"
 
     def draw(self, context):
         layout = self.layout

@@ -3,7 +3,7 @@
 
 import bpy
 
-from ..sidebar import BSPLabSubPanel
+from ..sidebar import BSPLabFeaturePanel, draw_toggle
 from . import draw as overlay_draw
 from . import geometry
 
@@ -12,13 +12,12 @@ KIND_COLOUR_PROPS = (("colour_x", "x"), ("colour_y", "y"), ("colour_z", "z"),
 NO_TREE_MESSAGE = "Build & Render first: the overlay draws the last built tree"
 
 
-class BSPLAB_PT_overlay(BSPLabSubPanel, bpy.types.Panel):
+class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
     bl_label = "Tree Overlay"
-    bl_idname = "BSPLAB_PT_overlay"
-    bl_options = {'DEFAULT_CLOSED'}
+    TOGGLE = ("bsplab_overlay", "show")
 
     def draw_header(self, context):
-        self.layout.prop(context.scene.bsplab_overlay, "show", text="")
+        draw_toggle(self, context)
         overlay_draw.redraw_if_tree_changed(context)
 
     def draw(self, context):
