@@ -52,8 +52,12 @@ def test_build_and_render_a_bvh_shows_its_statistics(addon, core, test_scene):
     tree = kept_tree(addon)
     assert tree.structure == "bvh" and stats["build"]["structure"] == "bvh"
     assert stats["render"]["max_box_tests"] > 0
-    compared = stats["embree"]["compare"]
-    assert compared["agree"] + compared["grazing"] >= compared["rays"]
+    embree = stats["embree"]
+    if embree["available"]:  # not in a Blender whose own Embree clashes (3.4)
+        compared = embree["compare"]
+        assert compared["agree"] + compared["grazing"] >= compared["rays"]
+    else:
+        assert embree["message"]
     labels = [text for kind, text in draw(addon.build_render.panel.BSPLAB_PT_stats)
               if kind == "label"]
     assert "Box Tests / Ray" in labels and "BVH (boxes)" in labels
