@@ -29,6 +29,8 @@
 #include <cmath>
 #include <utility>
 
+#include <xmmintrin.h>
+
 #include "trace/kernels/single_ray.hpp"
 
 #ifndef BSPLAB_ISA_NS
@@ -92,6 +94,45 @@ struct BvhRay {
 // (kBvhMaxDepth, builders/bvh_build.hpp, which the builder enforces).
 constexpr int kBvhStack = 64;
 
+// Both children of an interior node at once, in SSE (every level has it):
+// the four corners' crossings of one axis - lanes (A near, B near, A far,
+// B far) - in one vector, the far lanes negated, so that one max per axis
+// gives both entries and both (negated) exits. Each lane's arithmetic is
+// BvhRay::clip's exactly ((x - o) * -r is -((x - o) * r), and -a - e is
+// -(a + e)), and MAXPS returns its second operand where the first is NaN,
+// as std::max(s, t) keeps s: the same answers, the same counts.
+struct BvhPairTest {
+    __m128 org[3], sidir[3], err[3];
+    __m128 swap[3];  // all ones where d[k] < 0: the near corner is the high one
+
+    explicit BvhPairTest(const BvhRay& r) {
+        for (int k = 0; k < 3; ++k) {
+            org[k] = _mm_set1_ps(r.org[k]);
+            sidir[k] = _mm_setr_ps(r.idir[k], r.idir[k], -r.idir[k], -r.idir[k]);
+            err[k] = _mm_set1_ps(r.err[k]);
+            swap[k] = _mm_castsi128_ps(_mm_set1_epi32(r.neg[k] ? -1 : 0));
+        }
+    }
+
+    // Lanes 0, 1: entries of A and B; lanes 2, 3: their exits, negated.
+    void test(const BvhNode* pair, float s0, float s1, float out[4]) const {
+        const float* f = reinterpret_cast<const float*>(pair);
+        __m128 x = _mm_load_ps(f), y = _mm_load_ps(f + 8);      // A.lo, B.lo
+        __m128 z = _mm_load_ps(f + 4), w = _mm_load_ps(f + 12);  // A.hi, B.hi
+        _MM_TRANSPOSE4_PS(x, y, z, w);  // x = (A.lo.x, B.lo.x, A.hi.x, B.hi.x), ...
+        __m128 acc = _mm_setr_ps(s0, s0, -s1, -s1);
+        const __m128 axes[3] = {x, y, z};
+        for (int k = 0; k < 3; ++k) {
+            const __m128 v = axes[k];
+            const __m128 swapped = _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2));
+            const __m128 c = _mm_or_ps(_mm_and_ps(swap[k], swapped), _mm_andnot_ps(swap[k], v));
+            const __m128 t = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(c, org[k]), sidir[k]), err[k]);
+            acc = _mm_max_ps(t, acc);
+        }
+        _mm_storeu_ps(out, acc);
+    }
+};
+
 // One ray through the BVH (see the file's comment); the walk and the hit
 // bookkeeping are single_ray.hpp's.
 template <class Counters>
@@ -118,6 +159,7 @@ void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmi
     }
     const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
                           walk.test_t);
+    const BvhPairTest pair(ray);
     const float pad = tree.cull_pad + walk.slack;
     const uint32_t* refs = tree.refs;
     const Triangle* tris = tree.tris;
@@ -130,9 +172,10 @@ void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmi
         if (!node.is_leaf()) {
             const uint32_t left = node.left();
             const float limit = std::min(s_hi, hit.reach);
-            float a0, a1, b0, b1;
-            const bool ha = ray.clip(nodes[left], s_lo, limit, a0, a1);
-            const bool hb = ray.clip(nodes[left + 1], s_lo, limit, b0, b1);
+            float lanes[4];
+            pair.test(nodes + left, s_lo, limit, lanes);
+            const float a0 = lanes[0], b0 = lanes[1], a1 = -lanes[2], b1 = -lanes[3];
+            const bool ha = a0 <= a1, hb = b0 <= b1;
             count.box_test(2);
             if (ha && hb) {
                 // The nearer first; the other later, unless a hit ends the ray first.
