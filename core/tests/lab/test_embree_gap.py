@@ -74,6 +74,9 @@ def test_headline_follows_the_figures():
     fast = _workload(embree=[2.0], kd=[1.0], wn=[1.5], cn=[1.6], bvh=[1.0])
     text = embree_gap.headline(_record({"primary": fast})["scenes"])
     assert "no gap to split" in text and "0.50× Embree" in text
+    # A gap within the noise (kd 1.05× Embree) is not split either.
+    small = _workload(embree=[1.0], kd=[1.05], wn=[1.5], cn=[1.6], bvh=[2.0])
+    assert embree_gap.structure_share(small) is None
 
 
 def test_section_says_when_it_was_not_traced():
