@@ -38,13 +38,33 @@ class BSPLabPanel:
 
 
 class BSPLabSubPanel(BSPLabPanel):
-    """A sub-panel of the main panel, in its place (sub_panel_order)."""
+    """A sub-panel of the main panel, in its place (sub_panel_order). Its
+    `bl_idname` is its class name (BSPLAB_PT_<name>), as Blender asks."""
 
     bl_parent_id = MAIN_PANEL
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
+        cls.bl_idname = cls.__name__
         cls.bl_order = sub_panel_order(cls.bl_idname)
+
+
+class BSPLabFeaturePanel(BSPLabSubPanel):
+    """A sub-panel closed at first whose header's tick box turns its feature
+    on and off: TOGGLE is (the Scene's property group, its boolean)."""
+
+    bl_options = {'DEFAULT_CLOSED'}
+    TOGGLE = ("", "")
+
+    def draw_header(self, context):
+        draw_toggle(self, context)
+
+
+def draw_toggle(panel, context):
+    """The feature's tick box in `panel`'s header, without a label (the
+    panel's title is its label)."""
+    group, name = panel.TOGGLE
+    panel.layout.prop(getattr(context.scene, group), name, text="")
 
 
 def draw_options(layout, settings, method, names):

@@ -22,7 +22,7 @@ from . import tree_cache
 from .worker import UserError, WorkerJob
 
 # The per-pixel counters an A/B preview may show.
-COUNTERS = ("steps", "tests", "culled")
+COUNTERS = ("steps", "tests", "culled", "box_tests")
 
 
 @dataclass

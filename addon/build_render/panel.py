@@ -84,7 +84,6 @@ def draw_compare_grid(layout, grid):
 
 class BSPLAB_PT_stats(BSPLabSubPanel, bpy.types.Panel):
     bl_label = "Statistics"
-    bl_idname = "BSPLAB_PT_stats"
 
     def draw(self, context):
         layout = self.layout

@@ -101,6 +101,77 @@ def embree_rows(embree):
     return rows
 
 
+# What a tree is made of (the build statistics' "structure"), as the panel
+# names it.
+STRUCTURE_NAMES = {"bsp": "split planes", "bvh": "BVH (boxes)"}
+
+
+def is_bvh(build):
+    """Whether the build statistics are a BVH's (boxes, no split planes)."""
+    return build.get("structure") == "bvh"
+
+
+def build_rows(build):
+    """The Build section's rows. A BVH has no split planes, no kd or general
+    nodes, no empty leaves and no duplicated references (each triangle is in
+    one leaf): those rows are a kd or BSP tree's only, and a BVH shows its
+    node layout's bytes instead."""
+    bvh = is_bvh(build)
+    rows = [
+        ("Method", str(build.get("method", "-"))),
+        ("Structure", STRUCTURE_NAMES.get(build.get("structure"), "-")),
+        ("Tree", _tree_origin(build)),
+        ("Build Time", _seconds(build.get("build_seconds"))),
+        ("Fingerprint", _seconds(build.get("fingerprint_seconds"))),
+        ("Nodes", _count(build.get("nodes"))),
+        ("Leaves", _count(build.get("leaves"))),
+    ]
+    if not bvh:
+        rows.append(("Empty Leaves", _count(build.get("empty_leaves"))))
+    rows += [
+        ("Max Depth", _count(build.get("max_depth"))),
+        ("Leaf Depth", _number(build.get("mean_leaf_depth"), 1)),
+        ("Tris / Leaf", _number(build.get("mean_leaf_size"))),
+        ("Max Leaf Tris", _count(build.get("max_leaf_size"))),
+        ("References", _count(build.get("references"))),
+    ]
+    if bvh:
+        rows += [("SAH Cost", _number(build.get("sah_cost"))),
+                 ("Memory", _bytes(build.get("bytes"))),
+                 ("Node Bytes", _bytes(build.get("node_bytes")))]
+    else:
+        rows += [
+            ("Duplication", "{}x".format(_number(build.get("duplication")))),
+            ("Kd / General", "{} / {}".format(_count(build.get("kd_nodes")),
+                                              _count(build.get("general_nodes")))),
+            ("Memory", _bytes(build.get("bytes"))),
+            ("Leaf Boxes", "{} ({})".format(build.get("leaf_boxes", "-"),
+                                            _bytes(build.get("box_bytes")))),
+        ]
+    return rows
+
+
+def render_rows(render, bvh):
+    """The Render section's rows; a BVH's add its ray-box tests per ray."""
+    rows = [
+        ("Size", "{} x {}".format(render.get("width", "-"), render.get("height", "-"))),
+        ("Render Time", _seconds(render.get("seconds"))),
+        ("Rays/s", _rate(render.get("rays_per_second"))),
+        ("Kernel", "{}{}".format(render.get("kernel", "-"),
+                                 ", packets" if render.get("packets") else "")),
+        ("Steps / Ray", _number(render.get("mean_steps"))),
+    ]
+    if bvh:
+        rows.append(("Box Tests / Ray", _number(render.get("mean_box_tests"))))
+    rows += [
+        ("Tests / Ray", _number(render.get("mean_tests"))),
+        ("Culled / Ray", _number(render.get("mean_culled")) if render.get("cull", True)
+         else "off"),
+        ("Hits", _count(render.get("hits"))),
+    ]
+    return rows
+
+
 def sections(stats):
     """[(title, [(label, text), ...]), ...] for the statistics box.
 
@@ -117,38 +188,8 @@ def sections(stats):
             ("Objects", _count(scene.get("objects"))),
             ("Instances", _count(scene.get("instances"))),
         ]),
-        ("Build", [
-            ("Method", str(build.get("method", "-"))),
-            ("Tree", _tree_origin(build)),
-            ("Build Time", _seconds(build.get("build_seconds"))),
-            ("Fingerprint", _seconds(build.get("fingerprint_seconds"))),
-            ("Nodes", _count(build.get("nodes"))),
-            ("Leaves", _count(build.get("leaves"))),
-            ("Empty Leaves", _count(build.get("empty_leaves"))),
-            ("Max Depth", _count(build.get("max_depth"))),
-            ("Leaf Depth", _number(build.get("mean_leaf_depth"), 1)),
-            ("Tris / Leaf", _number(build.get("mean_leaf_size"))),
-            ("Max Leaf Tris", _count(build.get("max_leaf_size"))),
-            ("References", _count(build.get("references"))),
-            ("Duplication", "{}x".format(_number(build.get("duplication")))),
-            ("Kd / General", "{} / {}".format(_count(build.get("kd_nodes")),
-                                              _count(build.get("general_nodes")))),
-            ("Memory", _bytes(build.get("bytes"))),
-            ("Leaf Boxes", "{} ({})".format(build.get("leaf_boxes", "-"),
-                                            _bytes(build.get("box_bytes")))),
-        ]),
-        ("Render", [
-            ("Size", "{} x {}".format(render.get("width", "-"), render.get("height", "-"))),
-            ("Render Time", _seconds(render.get("seconds"))),
-            ("Rays/s", _rate(render.get("rays_per_second"))),
-            ("Kernel", "{}{}".format(render.get("kernel", "-"),
-                                     ", packets" if render.get("packets") else "")),
-            ("Steps / Ray", _number(render.get("mean_steps"))),
-            ("Tests / Ray", _number(render.get("mean_tests"))),
-            ("Culled / Ray", _number(render.get("mean_culled")) if render.get("cull", True)
-             else "off"),
-            ("Hits", _count(render.get("hits"))),
-        ]),
+        ("Build", build_rows(build)),
+        ("Render", render_rows(render, is_bvh(build))),
     ]
     embree = embree_rows(stats.get("embree"))
     if embree:
@@ -175,10 +216,13 @@ COMPARE_ROWS = (
     ("Nodes", lambda s: s["build"].get("nodes"), _count),
     ("Memory", lambda s: s["build"].get("bytes"), _bytes),
     ("Steps/Ray", lambda s: s["render"].get("mean_steps"), _number),
+    ("Boxes/Ray", lambda s: s["render"].get("mean_box_tests"), _number),
     ("Tests/Ray", lambda s: s["render"].get("mean_tests"), _number),
     ("Mray/s", lambda s: _mrays(s["render"]), _number),
     ("x Embree", lambda s: (s.get("embree") or {}).get("time_ratio"), _number),
 )
+# Rows shown only when A or B is a BVH: a kd or BSP tree tests no boxes.
+BVH_ONLY_ROWS = ("Boxes/Ray",)
 
 
 def tree_name(method, options):
@@ -200,7 +244,10 @@ def compare_grid(stats):
              tree_name(compare.get("b_method", b["build"].get("method", "-")),
                        compare.get("b_options")))
     rows = []
+    any_bvh = is_bvh(a.get("build", {})) or is_bvh(b.get("build", {}))
     for label, value, show in COMPARE_ROWS:
+        if label in BVH_ONLY_ROWS and not any_bvh:
+            continue
         va, vb = value(a), value(b)
         rows.append((label, show(va), show(vb), _ratio(va, vb)))
     return names, rows

@@ -6,8 +6,9 @@ with the camera, mode and culling of the first (A). Its preview is one of
 
 - `split`: A's image left of the middle column, B's right of it, a line
   between in a colour no render mode produces;
-- `diff_steps` / `diff_tests`: per pixel B's count minus A's (traversal steps
-  or triangle tests of that pixel's camera ray), in diverging colours (blue:
+- `diff_steps` / `diff_tests` / `diff_box_tests`: per pixel B's count minus
+  A's (traversal steps, triangle tests or, a BVH's, ray-box tests of that
+  pixel's camera ray: 0 on a kd or BSP tree), in diverging colours (blue:
   B does less, red: B does more, exactly 0: white, on a square-root scale)
   on a symmetric range +-S, with a colour bar labelled -S / 0 / +S. S is the 99th percentile of
   the non-zero |B - A| (not their maximum: one outlier pixel would wash out
@@ -24,8 +25,10 @@ import numpy as np
 from ..drawing import legend
 
 # The preview views, and for the differences the per-pixel counter they show.
-VIEWS = {"split": None, "diff_steps": "steps", "diff_tests": "tests"}
-UNITS = {"steps": "traversal steps per ray", "tests": "triangle tests per ray"}
+VIEWS = {"split": None, "diff_steps": "steps", "diff_tests": "tests",
+         "diff_box_tests": "box_tests"}
+UNITS = {"steps": "traversal steps per ray", "tests": "triangle tests per ray",
+         "box_tests": "box tests per ray"}
 
 # Magenta: the heat ramp has no magenta, the shaded and depth modes are grey,
 # and a normal map shows it only for a normal of (1, -1, 1) / 1, not a unit one.
@@ -164,7 +167,7 @@ def preview(a_image, b_image, counts, mode, view, ramp):
     """The preview image of an A/B press.
 
     `counts` holds "a" and "b", each a dict of (H, W) per-pixel counters
-    ("steps", "tests", "culled"); it may be None for a split of a mode that
+    ("steps", "tests", "culled", "box_tests"); it may be None for a split of a mode that
     shows no counter. `ramp` is the core's heat ramp."""
     if view not in VIEWS:
         raise ValueError("unknown comparison view {!r}; views: {}".format(view, ", ".join(VIEWS)))

@@ -5,18 +5,14 @@
 import bpy
 
 from .. import tree_options
-from ..sidebar import BSPLabSubPanel, draw_options
+from ..sidebar import BSPLabFeaturePanel, draw_options
 
 
-class BSPLAB_PT_compare(BSPLabSubPanel, bpy.types.Panel):
+class BSPLAB_PT_compare(BSPLabFeaturePanel, bpy.types.Panel):
     """Tree B of the A/B comparison: its method, its options and the view."""
 
     bl_label = "Compare A/B"
-    bl_idname = "BSPLAB_PT_compare"
-    bl_options = {'DEFAULT_CLOSED'}
-
-    def draw_header(self, context):
-        self.layout.prop(context.scene.bsplab_compare, "enabled", text="")
+    TOGGLE = ("bsplab_compare", "enabled")
 
     def draw(self, context):
         layout = self.layout

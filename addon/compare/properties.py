@@ -16,6 +16,9 @@ VIEW_ITEMS = (
     ('diff_tests', "Tests B - A",
      "Per pixel B's triangle tests minus A's: blue where B tests less, red where more, "
      "white where equal"),
+    ('diff_box_tests', "Box Tests B - A",
+     "Per pixel B's ray-box tests minus A's (a BVH's counter; a kd or BSP tree makes none): "
+     "blue where B tests less, red where more, white where equal"),
 )
 
 

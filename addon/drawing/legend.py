@@ -12,6 +12,7 @@ HEAT_UNITS = {
     "heat_steps": ("max_steps", "traversal steps per ray"),
     "heat_tests": ("max_tests", "triangle tests per ray"),
     "heat_culled": ("max_culled", "culled tests per ray"),
+    "heat_box_tests": ("max_box_tests", "box tests per ray"),  # a BVH's
 }
 STRIP_BACKGROUND = (0.05, 0.05, 0.06)  # the core's preview background
 TEXT = (0.92, 0.92, 0.92)

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The inspected ray in the 3D Viewport: the ray, the leaf cells it visits
-(wireframes coloured by visit order) and the triangles it tests (the hit in
-green, the missed in red, those skipped by culling in grey).
+(wireframes coloured by visit order; on a BVH, the boxes of every node it
+entered) and the triangles it tests (the hit in green, the missed in red,
+those skipped by culling in grey).
 
 `draw_data()` computes the arrays once per inspection, without bpy or gpu
 (the Blender tests check them in background mode, where drawing raises);
@@ -11,6 +12,7 @@ making the batches on the first frame after the inspection.
 
 import numpy as np
 
+from ..drawing import boxes
 from ..state import STATE
 from . import trace
 
@@ -52,6 +54,15 @@ def cell_lines(tree, leaves):
             np.ascontiguousarray(np.concatenate(cols), dtype=np.float32))
 
 
+def box_lines(path):
+    """Line-list vertices (24S, 3) and colours (24S, 4) of the boxes of the
+    S nodes a BVH walk entered, by visit order: a BVH has no cells, and the
+    boxes are what its steps test."""
+    lo, hi = trace.entered_boxes(path)
+    colours = np.repeat(visit_colours(len(lo)), 24, axis=0)
+    return boxes.segments(lo, hi), np.ascontiguousarray(colours, dtype=np.float32)
+
+
 def tested_triangle_colours(path, hit_prim):
     """Which references to draw (all but the repeats of a triangle this ray
     already tested) and the colour of each."""
@@ -68,7 +79,8 @@ def tested_triangle_colours(path, hit_prim):
 def draw_data(tree, triangles, inspection):
     """The arrays the batches are made of (all float32): "ray" (2, 3) from
     the origin to the hit or the box exit; "hit" (0 or 1, 3) the hit point;
-    "cell_coords" / "cell_colours" a line list of the visited leaves' cells;
+    "cell_coords" / "cell_colours" a line list of the visited leaves' cells
+    (of a BVH: of every visited node's box);
     "tri_coords" / "tri_colours" (3T, 3) / (3T, 4) the tested triangles
     (taken from `triangles`, those `tree` was built of), one colour per
     corner."""
@@ -78,8 +90,11 @@ def draw_data(tree, triangles, inspection):
     end = origin.astype(np.float64) + inspection["end_t"] * direction.astype(np.float64)
     ray = np.array([origin, end], dtype=np.float32)
     hit = ray[1:] if hit_prim is not None else np.zeros((0, 3), np.float32)
-    leaves = path["node"][path["kind"] == trace.LEAF]
-    cell_coords, cell_cols = cell_lines(tree, leaves)
+    if inspection.get("structure") == "bvh":
+        cell_coords, cell_cols = box_lines(path)
+    else:
+        leaves = path["node"][path["kind"] == trace.LEAF]
+        cell_coords, cell_cols = cell_lines(tree, leaves)
     prims, colours = tested_triangle_colours(path, hit_prim)
     tris = triangles[prims.astype(np.int64)].reshape(-1, 3)
     return {

@@ -28,7 +28,9 @@ def count_rows(inspection):
     return [
         ("Ray", inspection["source"]),
         ("Steps", "{} ({} leaves)".format(totals["steps"], totals["leaves"])),
-        ("General", str(totals["general_steps"])),
+        # A BVH has no general nodes; its steps test boxes.
+        ("Box Tests", str(totals["box_tests"])) if inspection.get("structure") == "bvh"
+        else ("General", str(totals["general_steps"])),
         ("Tests", str(totals["tests"])),
         ("Culled", str(totals["culled"])),
         ("Hit", hit),
@@ -63,7 +65,6 @@ def draw_step(layout, cells):
 
 class BSPLAB_PT_inspector(BSPLabSubPanel, bpy.types.Panel):
     bl_label = "Ray Inspector"
-    bl_idname = "BSPLAB_PT_inspector"
 
     def draw(self, context):
         layout = self.layout

@@ -6,7 +6,7 @@ pixel (`pixel_ray`, the camera model of `bsplab.Camera.rays` restated for one
 pixel: the Blender tests check it bit for bit against `rays()`), a pick in
 the viewport a ray from the view. `inspect()` traces it with the kept tree's
 `trace_path` and turns the walk into what the panel lists: the counts and
-one row per visited node.
+one row per visited node (for a BVH, the boxes the ray entered).
 """
 
 import numpy as np
@@ -15,9 +15,10 @@ from ..build_render.worker import UserError
 
 # Names of the trace_path codes (bsplab.tree.KINDS / TEST_RESULTS), restated
 # here so that the panel draws without the core.
-KINDS = ("x", "y", "z", "leaf", "general")
+KINDS = ("x", "y", "z", "leaf", "general", "box")
 TEST_RESULTS = ("miss", "hit", "culled", "seen")
 LEAF = KINDS.index("leaf")
+BOX = KINDS.index("box")  # a BVH's interior node (its leaves are LEAF)
 MISS, HIT, CULLED, SEEN = range(4)
 
 
@@ -60,8 +61,9 @@ def render_pixel(x, y, image_size, render_size):
 
 def plane_text(kind, plane):
     """How the panel shows a node's split plane (n.p = d): "x = 0.5" for a
-    kd node, "(0.60,0.80,0.00)p = 2" for a general one, "" for a leaf."""
-    if kind == LEAF:
+    kd node, "(0.60,0.80,0.00)p = 2" for a general one, "" for a leaf and
+    for a BVH's box node (it has no plane)."""
+    if kind in (LEAF, BOX):
         return ""
     n, d = plane[:3], plane[3]
     if kind < LEAF:  # an axis plane: n is the axis itself
@@ -92,10 +94,22 @@ def counts(path):
         "general_steps": int(path["general_steps"]),
         "tests": int(path["tests"]),
         "culled": int(path["culled"]),
+        # Ray-box tests: a BVH's counter (0 on kd and BSP trees, and absent
+        # from the paths of a core before BVHs).
+        "box_tests": int(path.get("box_tests", 0)),
         "hit_prim": int(path["prim"]) if hit else None,
         "hit_t": float(path["t"]) if hit else None,
         "leaves": int(np.count_nonzero(path["kind"] == LEAF)),
     }
+
+
+def entered_boxes(path):
+    """The boxes of a BVH's visited nodes in visit order, (lo, hi) (S, 3)
+    each; empty for a kd or BSP tree's walk (its rows are NaN)."""
+    lo = np.asarray(path.get("box_lo", np.zeros((0, 3))), np.float64).reshape(-1, 3)
+    hi = np.asarray(path.get("box_hi", np.zeros((0, 3))), np.float64).reshape(-1, 3)
+    keep = np.isfinite(lo).all(axis=1) & np.isfinite(hi).all(axis=1)
+    return lo[keep], hi[keep]
 
 
 def segment_end(path, box_bounds, origin):
@@ -121,6 +135,8 @@ def inspect(tree, origin, direction, cull, source):
     total = counts(path)
     return {
         "source": source,
+        # "bvh" or "bsp" (split planes): which counters and drawing apply.
+        "structure": getattr(tree, "structure", "bsp"),
         "origin": origin,
         "direction": direction,
         "cull": bool(cull),

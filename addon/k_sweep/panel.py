@@ -12,7 +12,6 @@ from .operator import BSPLAB_OT_sweep_k
 
 class BSPLAB_PT_sweep(BSPLabSubPanel, bpy.types.Panel):
     bl_label = "Sweep K"
-    bl_idname = "BSPLAB_PT_sweep"
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The tree overlay in the 3D Viewport: the kept tree's split planes, drawn
-translucent and clipped to their cells, and its cells as wireframes.
+translucent and clipped to their cells, and its cells as wireframes; a
+BVH's node boxes as wireframes coloured by depth.
 
 A `SpaceView3D` draw handler ('WINDOW', 'POST_VIEW': world space, under the
 viewport's own depth buffer) is added while the panel's "Tree Overlay" box

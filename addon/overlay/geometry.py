@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import backend
+from ..drawing import boxes
 
 # Planes' colours by kind (RGB), the panel's defaults: the axis colours of
 # Blender's own gizmos for kd planes, yellow for general planes.
@@ -128,15 +129,22 @@ def count_note(shown, cut, total, total_cut, cap, noun):
     return f"showing {shown:,} of {of} {noun} (cut at {cap:,})"
 
 
-def _split_planes(tree, settings, root):
-    polygons = tree.split_polygons(settings.max_depth, root=root, max_polygons=settings.cap)
-    total, total_cut = len(polygons["node"]), polygons["cut"]
-    if polygons["cut"]:
+def _capped_walk(query, settings, root):
+    """`query(max_depth, root, cap)` (the core's split_polygons or
+    node_boxes) at the settings' cap, how many there are in all and whether
+    that count was cut too."""
+    found = query(settings.max_depth, root, settings.cap)
+    total, total_cut = len(found["node"]), found["cut"]
+    if found["cut"]:
         # How many there would be: a second walk, bounded, only when cut.
-        counted = tree.split_polygons(settings.max_depth, root=root,
-                                      max_polygons=COUNT_FACTOR * settings.cap)
+        counted = query(settings.max_depth, root, COUNT_FACTOR * settings.cap)
         total, total_cut = len(counted["node"]), counted["cut"]
-    return polygons, total, total_cut
+    return found, total, total_cut
+
+
+def _split_planes(tree, settings, root):
+    return _capped_walk(lambda depth, node, cap: tree.split_polygons(
+        depth, root=node, max_polygons=cap), settings, root)
 
 
 def _cells(tree, settings, root):
@@ -159,6 +167,48 @@ def empty_geometry(note):
     }
 
 
+def is_bvh(tree):
+    """Whether `tree` is a BVH (boxes; no split planes, no cells)."""
+    return getattr(tree, "structure", "bsp") == "bvh"
+
+
+# Said on the panel for a BVH in place of the options it ignores.
+BVH_NOTE = "a BVH: its node boxes, coloured by depth (no planes, no cells)"
+
+
+def _node_boxes(tree, settings, root):
+    return _capped_walk(lambda depth, node, cap: tree.node_boxes(
+        depth, root=node, max_boxes=cap), settings, root)
+
+
+def box_geometry(tree, settings, root, root_depth):
+    """A BVH's overlay: the wireframes of its node boxes down to
+    `settings.max_depth` below `root`, coloured by depth whatever
+    `colour_by` says (a box has no kind), in the arrays of
+    overlay_geometry() (the edges are its "line_indices" over
+    "face_positions"; there are no faces and no cells)."""
+    found, total, total_cut = _node_boxes(tree, settings, root)
+    shown = len(found["node"])
+    positions, edges = boxes.wireframe(found["lo"], found["hi"])
+    rgb = np.repeat(depth_colours(found["depth"], settings.max_depth), 8, axis=0)
+    out = empty_geometry(count_note(shown, found["cut"], total, total_cut, settings.cap,
+                                    "node boxes"))
+    out.update({
+        "face_positions": positions,
+        "face_colours": np.hstack([rgb, np.full((len(rgb), 1), settings.alpha, np.float32)]),
+        "line_colours": np.hstack([rgb, np.full((len(rgb), 1), OUTLINE_ALPHA, np.float32)]),
+        "line_indices": edges,
+        "polygons": shown, "polygon_total": total, "cut": bool(found["cut"]),
+        "root": int(root), "root_depth": int(root_depth),
+        "depth": found["depth"], "node": found["node"], "leaf": found["leaf"],
+        "boxes": shown,
+    })
+    out["notes"].append(BVH_NOTE)
+    if settings.scope == "cursor":
+        out["notes"].insert(0, f"subtree of node {root:,} (depth {root_depth})")
+    return out
+
+
 def overlay_geometry(tree, settings, cursor=None):
     """The overlay's batches' arrays for `tree` (a bsplab.Tree):
 
@@ -170,13 +220,17 @@ def overlay_geometry(tree, settings, cursor=None):
     empty unless settings.cells); the counts "polygons", "polygon_total",
     "cut", "cells", "cells_cut"; "root"/"root_depth" (the node drawn from)
     and "notes" (lines for the panel). `cursor` is the 3D cursor's world
-    location, needed in the "cursor" scope.
+    location, needed in the "cursor" scope. A BVH's are its node boxes
+    (box_geometry): the same keys, "polygons" counting boxes.
     """
     bsplab = backend.import_bsplab()
     start = subtree_root(tree, settings, cursor)
     if start is None:
-        return empty_geometry("3D cursor is outside the tree's box")
+        return empty_geometry("3D cursor is in no leaf's box" if is_bvh(tree)
+                              else "3D cursor is outside the tree's box")
     root, root_depth = start
+    if is_bvh(tree):
+        return box_geometry(tree, settings, root, root_depth)
     polygons, total, total_cut = _split_planes(tree, settings, root)
     colours = polygon_colours(polygons, settings)
     shown = len(polygons["node"])

@@ -3,21 +3,21 @@
 
 import bpy
 
-from ..sidebar import BSPLabSubPanel
+from ..sidebar import BSPLabFeaturePanel, draw_toggle
 from . import draw as overlay_draw
+from . import geometry
 
 KIND_COLOUR_PROPS = (("colour_x", "x"), ("colour_y", "y"), ("colour_z", "z"),
                      ("colour_general", "general"))
 NO_TREE_MESSAGE = "Build & Render first: the overlay draws the last built tree"
 
 
-class BSPLAB_PT_overlay(BSPLabSubPanel, bpy.types.Panel):
+class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
     bl_label = "Tree Overlay"
-    bl_idname = "BSPLAB_PT_overlay"
-    bl_options = {'DEFAULT_CLOSED'}
+    TOGGLE = ("bsplab_overlay", "show")
 
     def draw_header(self, context):
-        self.layout.prop(context.scene.bsplab_overlay, "show", text="")
+        draw_toggle(self, context)
         overlay_draw.redraw_if_tree_changed(context)
 
     def draw(self, context):
@@ -35,10 +35,14 @@ class BSPLAB_PT_overlay(BSPLabSubPanel, bpy.types.Panel):
         col.prop(props, "scope")
         if props.scope == "cursor":
             col.prop(props, "subtree_depth")
-        col.prop(props, "colour_by")
-        draw_legend(col, props)
-        col.prop(props, "alpha")
-        col.prop(props, "cells")
+        if geometry.is_bvh(tree):
+            # Boxes by depth: a BVH has no kinds to colour and no cells.
+            col.label(text="BVH: boxes, depth 0 orange \u2192 {} blue".format(props.max_depth))
+        else:
+            col.prop(props, "colour_by")
+            draw_legend(col, props)
+            col.prop(props, "alpha")
+            col.prop(props, "cells")
         col.prop(props, "cap")
 
         if props.show and tree is not None:

@@ -237,3 +237,19 @@ def start_gui_check(tick):
     load_addon().register()
     bpy.app.timers.register(tick, first_interval=2.0)
 
+
+
+def script_args():
+    """The arguments after Blender's "--": the script's own ([] without)."""
+    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+
+
+def gui_check_output(default_out, **report_lists):
+    """A GUI check's output folder (its first argument, else `default_out`;
+    made), the rest of its arguments, and its report: the Blender version,
+    an "events" list and one empty list per name in `report_lists`."""
+    args = script_args()
+    out = pathlib.Path(args[0] if args else default_out)
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"blender": bpy.app.version_string, **{k: [] for k in report_lists}, "events": []}
+    return out, args[1:], report

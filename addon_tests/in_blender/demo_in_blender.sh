@@ -11,14 +11,8 @@
 
 set -u -o pipefail
 
-REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-cd "$REPO"
-
-PY="${PYTHON:-$REPO/.venv/bin/python}"
-if [ $# -gt 0 ] && [ "$1" != "--" ]; then PY="$1"; shift; fi
-[ "${1:-}" = "--" ] && shift
-[ $# -gt 0 ] || set -- --out out/blender_demo.png
-
-. "$REPO/addon_tests/in_blender/blender_env.sh"
+# shellcheck source=addon_tests/in_blender/bpy42_script.sh
+. "$(dirname "${BASH_SOURCE[0]}")/bpy42_script.sh" "$@"
+[ ${#SCRIPT_ARGS[@]} -gt 0 ] || SCRIPT_ARGS=(--out out/blender_demo.png)
 mkdir -p out
-run_script_on_bpy42 addon_tools/demo_headless.py "$@"
+run_script_on_bpy42 addon_tools/demo_headless.py "${SCRIPT_ARGS[@]}"

@@ -31,9 +31,7 @@ import bsplab_test_utils as utils  # noqa: E402
 import gui_utils  # noqa: E402
 from gui_utils import areas  # noqa: E402
 
-OUT = pathlib.Path(sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else "/tmp/bsplab_gui")
-OUT.mkdir(parents=True, exist_ok=True)
-report = {"blender": bpy.app.version_string, "progress": [], "events": []}
+OUT, _, report = utils.gui_check_output("/tmp/bsplab_gui", progress=True)
 
 
 def screenshot(name):

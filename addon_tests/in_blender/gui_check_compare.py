@@ -37,11 +37,8 @@ sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
 from gui_utils import areas  # noqa: E402
 
-ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-OUT = pathlib.Path(ARGS[0] if ARGS else "/tmp/bsplab_gui_compare")
-DOCS = pathlib.Path(ARGS[1]) if len(ARGS) > 1 else None
-OUT.mkdir(parents=True, exist_ok=True)
-report = {"blender": bpy.app.version_string, "events": []}
+OUT, EXTRA, report = utils.gui_check_output("/tmp/bsplab_gui_compare")
+DOCS = pathlib.Path(EXTRA[0]) if EXTRA else None
 
 B_METHOD, B_K = "bsp_wn+kd", 4
 

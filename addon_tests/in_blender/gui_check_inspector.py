@@ -32,9 +32,7 @@ sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
 from gui_utils import click, grab_screen  # noqa: E402
 
-OUT = pathlib.Path(sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else "/tmp/bsplab_gui")
-OUT.mkdir(parents=True, exist_ok=True)
-report = {"blender": bpy.app.version_string, "events": []}
+OUT, _, report = utils.gui_check_output("/tmp/bsplab_gui")
 SEARCH = 10  # pixels around a projected point searched for its colour
 
 

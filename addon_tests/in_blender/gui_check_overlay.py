@@ -43,11 +43,8 @@ sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
 from gui_utils import grab_screen  # noqa: E402
 
-ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-OUT = pathlib.Path(ARGS[0] if ARGS else "/tmp/bsplab_gui_overlay")
-DOCS_IMAGE = pathlib.Path(ARGS[1]) if len(ARGS) > 1 else None
-OUT.mkdir(parents=True, exist_ok=True)
-report = {"blender": bpy.app.version_string, "events": []}
+OUT, EXTRA, report = utils.gui_check_output("/tmp/bsplab_gui_overlay")
+DOCS_IMAGE = pathlib.Path(EXTRA[0]) if EXTRA else None
 
 # A kind colour's channels above this are the ones a pixel of it must lead
 # with (x: red; general: red and green); a pixel "shows" the colour when

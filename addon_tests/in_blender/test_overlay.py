@@ -21,8 +21,9 @@ def panel_labels(addon):
 
 def draw_header(addon):
     layout = RecordingLayout()
-    panel = type("Panel", (), {"layout": layout})()
-    addon.overlay.panel.BSPLAB_PT_overlay.draw_header(panel, bpy.context)
+    cls = addon.overlay.panel.BSPLAB_PT_overlay
+    panel = type("Panel", (), {"layout": layout, "TOGGLE": cls.TOGGLE})()
+    cls.draw_header(panel, bpy.context)
     return layout.log
 
 

@@ -173,3 +173,15 @@ def test_panel_shows_the_methods_own_params(addon, core, empty_scene):
         for name in addon.tree_options.BUILD_OPTIONS:
             expected = name in info["params"] or name == "threads"
             assert (name in props) == expected, (method, name)
+
+
+def test_feature_panels_start_closed_with_their_tick_box_in_the_header(addon, empty_scene):
+    for cls, toggle in ((addon.compare.panel.BSPLAB_PT_compare, ("bsplab_compare", "enabled")),
+                        (addon.overlay.panel.BSPLAB_PT_overlay, ("bsplab_overlay", "show"))):
+        assert cls.bl_options == {'DEFAULT_CLOSED'} and cls.TOGGLE == toggle
+        layout = RecordingLayout()
+        cls.draw_header(types.SimpleNamespace(layout=layout, TOGGLE=cls.TOGGLE), bpy.context)
+        assert layout.log[0] == ("prop", toggle[1])
+    # Every sub-panel's idname is its class name, the one Blender registers.
+    for name in addon.sidebar.SUB_PANEL_ORDER:
+        assert getattr(bpy.types, name).bl_idname == name

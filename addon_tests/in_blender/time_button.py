@@ -32,18 +32,30 @@ sys.path.insert(0, str(REPO / "addon_tools"))
 import demo_headless  # noqa: E402  (the add-on loader)
 
 
-def parse_args():
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    p = argparse.ArgumentParser(prog="time_button.py")
+def script_argv():
+    """The script's arguments: those after Blender's "--", else the command
+    line's (the bpy module runs it as a plain Python script)."""
+    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+
+
+def scene_arguments(prog):
+    """A parser with the options the timing scripts share (this one and
+    time_inspector.py): the shared scene, the preview percentage, the method."""
+    p = argparse.ArgumentParser(prog=prog)
     p.add_argument("--scene", default="conference")
     p.add_argument("--preview", type=int, default=50)
-    p.add_argument("--presses", type=int, default=5)
     p.add_argument("--method", default="kd")
+    return p
+
+
+def parse_args():
+    p = scene_arguments("time_button.py")
+    p.add_argument("--presses", type=int, default=5)
     p.add_argument("--no-counts", action="store_true",
                    help="Count Steps & Tests off: the preview traced in packets")
     p.add_argument("--cold", action="store_true",
                    help="forget the kept tree before every press: every press builds")
-    return p.parse_args(argv)
+    return p.parse_args(script_argv())
 
 
 def import_scene(path):

@@ -6,12 +6,6 @@
 
 set -u -o pipefail
 
-REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
-cd "$REPO"
-
-PY="${PYTHON:-$REPO/.venv/bin/python}"
-if [ $# -gt 0 ] && [ "$1" != "--" ]; then PY="$1"; shift; fi
-[ "${1:-}" = "--" ] && shift
-
-. "$REPO/addon_tests/in_blender/blender_env.sh"
-run_script_on_bpy42 addon_tests/in_blender/time_button.py "$@"
+# shellcheck source=addon_tests/in_blender/bpy42_script.sh
+. "$(dirname "${BASH_SOURCE[0]}")/bpy42_script.sh" "$@"
+run_script_on_bpy42 addon_tests/in_blender/time_button.py "${SCRIPT_ARGS[@]}"

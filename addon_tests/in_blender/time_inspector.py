@@ -18,7 +18,6 @@
 Exits 0 with a note (not a failure) when the shared scenes are missing.
 """
 
-import argparse
 import os
 import statistics
 import sys
@@ -32,13 +31,9 @@ import time_button  # noqa: E402  (the scene and camera set-up, the add-on loade
 
 
 def parse_args():
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    p = argparse.ArgumentParser(prog="time_inspector.py")
-    p.add_argument("--scene", default="conference")
-    p.add_argument("--preview", type=int, default=50)
+    p = time_button.scene_arguments("time_inspector.py")
     p.add_argument("--picks", type=int, default=50)
-    p.add_argument("--method", default="kd")
-    return p.parse_args(argv)
+    return p.parse_args(time_button.script_argv())
 
 
 def grid_pixels(width, height, count):

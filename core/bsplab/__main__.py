@@ -201,7 +201,7 @@ def cmd_verdict(args) -> int:
     out = output_file(args.out, "--out", "verdict.md")
     return verdict_report.main(out, args.scenes, args.results, rounds=args.rounds,
                                side=args.side, trace=not args.skip_trace,
-                               command=benchmarks.command_line())
+                               command=benchmarks.command_line(), only_gap=args.only_gap)
 
 
 def cmd_bench_families(args) -> int:
@@ -297,7 +297,7 @@ def main(argv=None) -> int:
     b = sub.add_parser("bench", help="build and trace time against Embree")
     b.add_argument("--scenes", nargs="*", help="default: generated + all shared meshes")
     b.add_argument("--methods", nargs="*",
-                   help="default: kd, bsp_cn+kd, bsp_wn+kd (K = 8: the spec's ks)")
+                   help="default: kd, bsp_cn+kd, bsp_wn+kd (K = 8: the spec's ks), bvh")
     b.add_argument("--side", type=whole(1), help="primary rays: side x side (default 512)")
     b.add_argument("--rays", type=whole(1), help="random rays (default 250,000)")
     b.add_argument("--repeats", type=whole(1), help="paired rounds (default 5)")
@@ -382,6 +382,9 @@ def main(argv=None) -> int:
                                                 "results spec's 256)")
     v.add_argument("--skip-trace", action="store_true",
                    help="reuse the last traced record (docs/data/verdict.json)")
+    v.add_argument("--only-gap", action="store_true",
+                   help="reuse the last traced record's sections 1-4 and trace only section "
+                        "8, the gap to Embree (kd, the best ^Kd, the BVH, Embree)")
     v.add_argument("--out", default="docs/verdict.md")
     v.set_defaults(func=cmd_verdict)
 

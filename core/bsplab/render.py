@@ -13,8 +13,12 @@ from . import _core, checks
 from .camera import Camera, image_order, tile_order
 from .tree import Tree
 
-RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests", "heat_culled")
-HEAT_COUNTERS = {"heat_steps": "steps", "heat_tests": "tests", "heat_culled": "culled"}
+RENDER_MODES = ("shaded", "normal", "depth", "heat_steps", "heat_tests", "heat_culled",
+                "heat_box_tests")
+# The counter each heat mode shows. Box tests are a BVH's (ray-box tests);
+# on a kd or BSP tree that map is all 0.
+HEAT_COUNTERS = {"heat_steps": "steps", "heat_tests": "tests", "heat_culled": "culled",
+                 "heat_box_tests": "box_tests"}
 MAX_SIZE = 16384
 BACKGROUND = np.array([0.05, 0.05, 0.06], np.float32)
 
@@ -119,7 +123,8 @@ def counter_stats(hits: dict | None) -> dict:
     render traced on the hits-only path (not counted)."""
     if hits is None:
         return dict.fromkeys(("mean_steps", "mean_tests", "mean_culled", "mean_general_steps",
-                              "max_steps", "max_tests", "max_culled"))
+                              "mean_box_tests", "max_steps", "max_tests", "max_culled",
+                              "max_box_tests"))
     return {
         "mean_steps": float(hits["steps"].mean()),
         "mean_tests": float(hits["tests"].mean()),
@@ -129,6 +134,9 @@ def counter_stats(hits: dict | None) -> dict:
         "max_tests": int(hits["tests"].max()),
         # The heat_culled preview's colour bar runs up to it.
         "max_culled": int(hits["culled"].max()),
+        # A BVH's ray-box tests (0 on kd and BSP trees); the heat_box_tests bar.
+        "mean_box_tests": float(hits["box_tests"].mean()),
+        "max_box_tests": int(hits["box_tests"].max()),
     }
 
 

@@ -413,8 +413,8 @@ def _trace_table(res: Results, w: str) -> list[str]:
     head = "| scene | method | K | rays | Embree Mray/s |"
     head += "".join(f" {label} Mray/s | {label} × Embree speed |" for _, label in paths)
     out = ["", f"## {w.capitalize()} rays", "",
-           head + " steps/ray | tests/ray | wrong hits | grazing |",
-           "|---|---|---:|---:|---:|" + "---:|---:|" * len(paths) + "---:|---:|---:|---:|"]
+           head + " steps/ray | box tests/ray | tests/ray | wrong hits | grazing |",
+           "|---|---|---:|---:|---:|" + "---:|---:|" * len(paths) + "---:|---:|---:|---:|---:|"]
     for g in groups:
         fields = [scene_label(g.scene), g.method, "" if g.k is None else str(g.k),
                  f"{int(g.rows[0]['rays']):,}", _f(_mrays(g, "embree_s"), "{:.2f}")]
@@ -423,17 +423,95 @@ def _trace_table(res: Results, w: str) -> list[str]:
             # (the figure the issue's targets are about), else the counters'.
             fields += [_f(_mrays(g, column), "{:.2f}"), _speed_field(g, column, i == 0)]
         grazing = sum(int(r["grazing"]) for r in g.rows)
-        fields += [f"{g.mean('steps'):.1f}", f"{g.mean('tests'):.2f}", str(wrong_hits(g)),
-                  str(grazing)]
+        fields += [f"{g.mean('steps'):.1f}", _f(box_tests(g), "{:.1f}"),
+                   f"{g.mean('tests'):.2f}", str(wrong_hits(g)), str(grazing)]
         out.append("| " + " | ".join(fields) + " |")
     return out
 
 
+def box_tests(g: Group) -> float | None:
+    """Ray-box tests per ray (a BVH's counter; 0 on kd and BSP trees), None
+    in rows from before the counter."""
+    values = [r.get("box_tests") for r in g.rows]
+    return None if any(v in ("", None) for v in values) else g.mean("box_tests")
+
+
+# The bench spec's normal-based ^Kd trees, of which the side-by-side table
+# shows the fastest per scene and workload.
+BEST_KD_METHODS = ("bsp_wn+kd", "bsp_cn+kd")
+
+SIDE_BY_SIDE = ("The three structures on one kernel against Embree: kd, the faster of the "
+                "normal-based ^Kd trees (`best ^Kd`, chosen per scene and rays by its "
+                "hits-only time) and the BVH (`bvh`: binned SAH, binary, no K), each traced "
+                "on the hits-only single-ray path in the same rounds as Embree. `× Embree "
+                "speed` is Embree's time over the tree's (above 1: faster than Embree); "
+                "`kd ÷ BVH` and `best ÷ BVH` the per-round time ratios to the BVH (above 1: "
+                "the BVH is faster), the structure's share of the gap, since the kernel is "
+                "the same; steps, box tests and triangle tests are per ray. "
+                "`docs/verdict.md` splits the gap into structure and kernel.")
+
+
+def _speed(g: Group, column: str) -> float | None:
+    x = g.per_round("embree_s", column)
+    return None if x is None else float(np.median(x))
+
+
+def _time_ratio(a: Group, b: Group, column: str) -> float | None:
+    """Median of the per-round ratios of `a`'s time over `b`'s, both taken
+    from their rounds' Embree partners (each tree's trial has its own rounds:
+    a's time / its Embree over b's time / its Embree)."""
+    ra, rb = a.per_round(column, "embree_s"), b.per_round(column, "embree_s")
+    if ra is None or rb is None:
+        return None
+    return float(np.median(ra) / np.median(rb))
+
+
+def side_by_side_table(res: Results, w: str, explain: bool = True) -> list[str]:
+    """Per scene: kd, the best ^Kd tree and the BVH against Embree on `w`'s
+    rays, with the columns' explanation when `explain`; [] when the run has
+    no BVH or no kd."""
+    column = next((c for c, _ in TRACE_PATHS
+                   if any(r.get(c) for g in res.groups.values() for r in g.rows)), "trace_s")
+    out = []
+    for scene in res.scenes:
+        kd, bvh = res.kd(scene, w), res.get(scene, w, "bvh", None)
+        if kd is None or bvh is None or not (kd.has_embree() and bvh.has_embree()):
+            continue
+        best = [g for m in BEST_KD_METHODS for k in res.ks(m)
+                if (g := res.get(scene, w, m, k)) is not None and g.has_embree()]
+        best_g = max(best, key=lambda g: _speed(g, column) or 0.0) if best else None
+        fields = [scene_label(scene), f"{kd.triangles:,}", _f(_mrays(kd, "embree_s"), "{:.2f}")]
+        for g in (kd, best_g, bvh):
+            fields.append("—" if g is None else _f(_speed(g, column), "{:.2f}"))
+        fields += [_f(_time_ratio(kd, bvh, column), "{:.2f}"),
+                   "—" if best_g is None else f"{best_g.method} {best_g.k}: "
+                   + _f(_time_ratio(best_g, bvh, column), "{:.2f}")]
+        fields += [" / ".join("—" if g is None else f"{g.mean('steps'):.1f}"
+                              for g in (kd, best_g, bvh)),
+                   _f(box_tests(bvh), "{:.1f}"),
+                   " / ".join("—" if g is None else f"{g.mean('tests'):.2f}"
+                              for g in (kd, best_g, bvh)),
+                   str(wrong_hits(bvh))]
+        out.append("| " + " | ".join(fields) + " |")
+    if not out:
+        return []
+    label = dict(TRACE_PATHS).get(column, column)
+    return (["", f"## {w.capitalize()} rays: kd, the best ^Kd and the BVH against Embree "
+             f"({label})", ""] + ([SIDE_BY_SIDE, ""] if explain else []) + [
+             "| scene | triangles | Embree Mray/s | kd × Embree speed | best ^Kd × Embree "
+             "speed | BVH × Embree speed | kd ÷ BVH time | best ^Kd ÷ BVH time | steps/ray kd "
+             "/ best / BVH | BVH box tests/ray | tests/ray kd / best / BVH | BVH wrong hits |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"] + out)
+
+
 def benchmark_markdown(rows: list[dict], command: str, meta: dict | None = None) -> str:
-    """docs/benchmark.md: build and trace of each method against Embree."""
+    """docs/benchmark.md: build and trace of each method against Embree, and
+    kd, the best ^Kd tree and the BVH side by side."""
     res = Results(rows)
     out = _header("Benchmark: BSP Lab trees vs Embree", command, meta, BENCH_COLUMNS)
     out += _build_table(res)
+    for i, w in enumerate(res.workloads):
+        out += side_by_side_table(res, w, explain=i == 0)
     for w in res.workloads:
         out += _trace_table(res, w)
     return "\n".join(out) + "\n"

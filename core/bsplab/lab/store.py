@@ -32,6 +32,8 @@ ROW_FIELDS = [
     # The hits-only paths, where the spec times them: their rounds' times and
     # wrong hits (hits_only_s, hits_only_unexplained, packets_s, ...).
     *(f"{path}_{column}" for path in HITS_ONLY_PATHS for column in ("s", "unexplained")),
+    # Ray-box tests per ray (a BVH's; 0 on kd and BSP trees, empty in older files).
+    "box_tests",
 ]
 
 

@@ -188,6 +188,7 @@ def _row(trial: Trial, tris, s: dict, rays: Rays, times: PairedTimes, embree) ->
         "steps": float(hits["steps"].mean()),
         "general_steps": float(hits["general_steps"].mean()),
         "tests": float(hits["tests"].mean()),
+        "box_tests": float(hits["box_tests"].mean()),
         "hits": int((hits["prim"] >= 0).sum()),
         "unexplained": unexplained, "grazing": grazing,
         "embree_build_s": embree.build_seconds if embree else "",

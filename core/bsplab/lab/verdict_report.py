@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import embree_gap
 from .benchmarks import fit_costs
 from .report import Results, scene_label
 from .verdict import KD, paired_ratio, ratio_to_kd
@@ -19,6 +20,9 @@ from .verdict import KD, paired_ratio, ratio_to_kd
 AO_TARGETS = {"sponza_dabrovic": 0.80, "conference": 0.80, "bunny": 0.70,
               "dragon_res2": 0.70, "sportscar": 0.70}
 BEST = ("bsp_wn+kd 8", "bsp_cn+kd 8")  # the experiment's normal-based ^Kd trees
+# The number of the section on the gap to Embree (embree_gap.py), after the
+# seven on BSP planes.
+GAP_SECTION = 8
 
 
 def _pct(x: float | None, digits: int = 0) -> str:
@@ -273,13 +277,17 @@ def markdown(record: dict | None, rows: list[dict] | None, command: str) -> str:
                 *sah_table(rows)]
     else:
         out += ["(No results rows: run `python -m bsplab results` first.)", ""]
+    out += embree_gap.section((record or {}).get("gap"), GAP_SECTION)
     return "\n".join(out) + "\n"
 
 
 def main(out, scenes=None, results=None, rounds: int = 7, side: int | None = None,
-         trace: bool = True, command: str = "python -m bsplab verdict") -> int:
+         trace: bool = True, command: str = "python -m bsplab verdict",
+         only_gap: bool = False) -> int:
     """Runs the traced part (unless `trace` is False: then the last record
-    beside `out` is reused), reads the results rows, writes the page."""
+    beside `out` is reused; with `only_gap`, the record's sections 1-4 are
+    reused and only the gap to Embree is traced again), reads the results
+    rows, writes the page."""
     import json
     from pathlib import Path
 
@@ -291,19 +299,24 @@ def main(out, scenes=None, results=None, rounds: int = 7, side: int | None = Non
         what = "not a regular file" if Path(results).exists() else "no such results file"
         raise ValueError(f"--results {results}: {what} (run `python -m bsplab results` "
                          "first, or name one with --results)")
-    if not trace and not data.is_file():
-        raise ValueError(f"--skip-trace: no traced record {data} to reuse; run without "
-                         "--skip-trace")
-    if trace:
+    if (only_gap or not trace) and not data.is_file():
+        flag = "--only-gap" if only_gap else "--skip-trace"
+        raise ValueError(f"{flag}: no traced record {data} to reuse; run without {flag}")
+    if trace or only_gap:
         from .benchmarks import available_scenes
         chosen = scenes or available_scenes(verdict.DEFAULT_SCENES)
         if not chosen:
             raise ValueError("no scene to trace: the shared scenes are not here; "
                              "name generated ones with --scenes (e.g. room spheres)")
+    if trace and not only_gap:
         record = verdict.run(chosen, data, rounds=rounds, width=side, height=side,
                              command=command)
     else:
         record = json.loads(data.read_text())
+    if trace or only_gap:
+        record["gap"] = dict(embree_gap.run(chosen, verdict.SPECS / "results.toml", rounds,
+                                            width=side, height=side), command=command)
+        data.write_text(json.dumps(record, indent=1))
     rows = read_rows(results) if results else None
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(markdown(record, rows, command))

@@ -341,8 +341,32 @@ def test_the_shipped_bench_spec_times_kd_the_kd_node_trees_and_the_bvh_on_every_
     from bsplab.method_table import METHODS
     spec = benchmarks.benchmark_spec("bench", ["room"])
     assert spec.hits_only and spec.repetitions >= 5
-    assert spec.methods[0] == "kd" and spec.methods[-1] == "bvh" and len(spec.methods) > 2
-    assert all(METHODS[m].kd_nodes for m in spec.methods[1:-1])
+    assert spec.methods[0] == "kd" and spec.methods[-1] == "bvh"
+    # Between them, the ^Kd trees the side-by-side table picks the best of.
+    assert spec.methods[1:-1] and all(METHODS[m].kd_nodes for m in spec.methods[1:-1])
+    from bsplab.lab import report
+    assert set(spec.methods[1:-1]) <= set(report.BEST_KD_METHODS)
+
+
+def test_bench_page_sets_kd_the_best_kd_tree_and_the_bvh_side_by_side(tmp_path):
+    from bsplab.lab import benchmarks, report
+    from bsplab.lab.store import read_rows
+    out = tmp_path / "benchmark.md"
+    benchmarks.bench(out, ["room"], methods=["kd", "bsp_wn+kd", "bsp_cn+kd", "bvh"], side=12,
+                     rays=300, repeats=2)
+    rows = read_rows(tmp_path / "data" / "benchmark.csv")
+    res = report.Results(rows)
+    page = out.read_text()
+    for w in ("primary", "random"):
+        kd, bvh = res.kd("room", w), res.get("room", w, "bvh", None)
+        assert f"## {w.capitalize()} rays: kd, the best ^Kd and the BVH against Embree" in page
+        # The row's kd ÷ BVH is the ratio of the rows' own paired times.
+        kd_bvh = (np.median(kd.per_round("hits_only_s", "embree_s"))
+                  / np.median(bvh.per_round("hits_only_s", "embree_s")))
+        line = next(x for x in page.splitlines()
+                    if x.startswith("| room | 2,076 |") and f"{kd_bvh:.2f}" in x)
+        assert f"| {bvh.mean('box_tests'):.1f} |" in line
+        assert kd.mean("box_tests") == 0 and bvh.mean("box_tests") > 0
 
 
 def test_bench_family_has_every_method_and_k_against_kd(tmp_path):

@@ -75,7 +75,7 @@ def test_page_from_record_and_results_rows(tmp_path, room_record):
               "load_end": [1.0, 1.0, 1.0], "rounds": 2, "width": 24, "height": 24,
               "minutes": 1.0, "scenes": [room_record]}
     page = verdict_report.markdown(record, rows, "python -m bsplab verdict")
-    for section in range(1, 8):
+    for section in range(1, 9):
         assert f"## {section}." in page
     # The best tree's tests % kd in section 3 is the record's own ratio.
     w = room_record["workloads"]["ao"]
