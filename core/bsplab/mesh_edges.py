@@ -38,22 +38,29 @@ def edge_groups(tris: np.ndarray) -> np.ndarray:
 
 
 def crosses_surface(tris: np.ndarray, groups: np.ndarray, ids: np.ndarray, prim: int,
-                    edge: int, direction: np.ndarray) -> bool:
+                    edge: int, direction: np.ndarray, parallel_cos: float = 0.0) -> bool:
     """Whether a ray along `direction` through edge `edge` of triangle
     `prim` passes from one side of the surface to the other there (one of
     the edge's other triangles faces the ray the way `prim` does, windings
     made consistent), rather than touching a silhouette edge - a convex
     corner seen from outside, where a single-precision test may rightly
-    miss both triangles. `groups` is edge_groups(tris) and `ids`
-    triangle_ids(tris), computed once by the caller: both sort the whole
-    mesh, and the leak check asks this for many rays."""
+    miss both triangles. An other triangle within `parallel_cos` (the
+    cosine of the ray's angle to its normal) of lying edge-on to the ray
+    does not count: seen along the ray it is a segment, so the edge is a
+    silhouette there unless the float data round the right way (a ray lying
+    in a sphere's face plane, through the edge to its neighbour).
+    `groups` is edge_groups(tris) and `ids` triangle_ids(tris), computed
+    once by the caller: both sort the whole mesh, and the leak check asks
+    this for many rays."""
     t32 = np.asarray(tris, np.float32)
     row = 3 * prim + edge
     d = np.asarray(direction, np.float64)
 
     def facing(r: int) -> float:
         t = t32[r // 3].astype(np.float64)
-        return float(np.dot(np.cross(t[1] - t[0], t[2] - t[0]), d))
+        n = np.cross(t[1] - t[0], t[2] - t[0])
+        f = float(np.dot(n, d))
+        return 0.0 if abs(f) <= parallel_cos * np.linalg.norm(n) * np.linalg.norm(d) else f
 
     def start(r: int) -> np.ndarray:  # the edge's first end point (triangle_edges' a)
         return t32[r // 3, r % 3]
@@ -71,12 +78,15 @@ def crosses_surface(tris: np.ndarray, groups: np.ndarray, ids: np.ndarray, prim:
 
 
 def touching_vertex(tris: np.ndarray, shared: np.ndarray, prim: int, vertex: int,
-                    direction: np.ndarray) -> bool:
+                    direction: np.ndarray, parallel_cos: float = 0.0) -> bool:
     """Whether a ray along `direction` through vertex `vertex` of triangle
     `prim` may rightly miss every triangle there: the vertex lies on an open
     edge (the surface's border: no closed fan around it), or some triangle
     around it faces the ray the other way (a corner of a box seen from
-    outside, which the ray only touches). `shared` is shared_mask(tris)."""
+    outside, which the ray only touches), or lies within `parallel_cos` of
+    edge-on to it (a ray along a cone's edge through its apex: seen along
+    the ray the fan's edges there coincide only in exact arithmetic).
+    `shared` is shared_mask(tris)."""
     t = np.asarray(tris, np.float32)
     v = t[prim, vertex]
     at = (t == v).all(axis=2)  # (N, 3): triangle i has the vertex as its corner j
@@ -86,8 +96,10 @@ def touching_vertex(tris: np.ndarray, shared: np.ndarray, prim: int, vertex: int
         return True
     around = t[rows].astype(np.float64)
     n = np.cross(around[:, 1] - around[:, 0], around[:, 2] - around[:, 0])
-    facing = n @ np.asarray(direction, np.float64)
-    return bool((facing > 0).any() and (facing < 0).any())
+    d = np.asarray(direction, np.float64)
+    facing = n @ d
+    edge_on = np.abs(facing) <= parallel_cos * np.linalg.norm(n, axis=1) * np.linalg.norm(d)
+    return bool(edge_on.any() or ((facing > 0).any() and (facing < 0).any()))
 
 
 def triangle_ids(tris: np.ndarray) -> np.ndarray:

@@ -248,7 +248,10 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     touches), hits on zero-area triangles, hits at the segment's
     start (t = 0: a ray leaving a surface) or end (tmax), and rays within
     PARALLEL_COS of the hit triangle's plane (a ray lying in it: where it
-    crosses the plane is not decided by the float data). A shared edge is no
+    crosses the plane is not decided by the float data), or of the plane of
+    a triangle at the edge or vertex it passes through (seen along the ray
+    that triangle is a segment, and whether the ray passes the surface there
+    or through it is decided only by rounding). A shared edge is otherwise no
     excuse: one of its triangles must be hit whatever the rounding
     (mesh_edges). Returns the indices."""
     from . import mesh_edges
@@ -276,7 +279,7 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     excused = np.zeros(len(idx), bool)
     for row, edge in zip(*np.nonzero(near)):
         if not excused[row] and not mesh_edges.crosses_surface(
-                tris, groups, ids, int(prim[row]), int(edge), d[row]):
+                tris, groups, ids, int(prim[row]), int(edge), d[row], PARALLEL_COS):
             excused[row] = True
     # Near two edges: through their common vertex, which may be a corner
     # the ray only touches.
@@ -284,7 +287,7 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
         j = [e for e in range(3) if near[row, e]]
         vertex = (j[1] if j[1] == j[0] + 1 else j[0]) if len(j) == 2 else 0
         excused[row] = len(j) == 3 or mesh_edges.touching_vertex(
-            tris, shared, int(prim[row]), vertex, d[row])
+            tris, shared, int(prim[row]), vertex, d[row], PARALLEL_COS)
     t3 = tris[prim].astype(np.float64)
     excused |= np.abs(np.cross(t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0])).sum(axis=1) == 0
     # Embree's float t is off where its triangle is nearly parallel to the

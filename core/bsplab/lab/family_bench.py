@@ -8,7 +8,12 @@ culling on and off, counters on and off, packets, one and two threads).
 Cheap by design (a few thousand rays per family, three rounds): it is the
 robustness issue's check that no family falls off a cliff - rays in split
 planes and from a million scene sizes away cost about what camera rays
-cost - not a speed report."""
+cost - not a speed report. Beside the camera rays, each family's steps are
+compared with those of the same rays moved off by MOVE (of the scene's
+size) across their direction ("x moved"): what lying exactly in a plane,
+on an edge or on a vertex costs over passing next to it, which is the
+cliff; a family aimed into the densest part of a scene costs more than
+camera rays whether or not it lies in a plane."""
 
 from __future__ import annotations
 
@@ -28,6 +33,23 @@ PATHS = {
 }
 
 
+# How far "x moved" moves each ray off its line, in scene sizes: far below
+# any feature of the generated scenes, far above the crossing tolerances.
+MOVE = 1e-4
+
+
+def moved_rays(o: np.ndarray, d: np.ndarray, size: float, seed: int = 0) -> np.ndarray:
+    """The origins moved by MOVE * size in a random direction across each
+    ray (perpendicular to it): the same rays, off every plane, edge and
+    vertex they lay in or passed through."""
+    rng = np.random.default_rng(seed)
+    r = rng.normal(size=o.shape)
+    d64 = d.astype(np.float64)
+    r -= (np.einsum("ij,ij->i", r, d64) / np.einsum("ij,ij->i", d64, d64))[:, None] * d64
+    r /= np.maximum(np.linalg.norm(r, axis=1, keepdims=True), 1e-300)
+    return (o.astype(np.float64) + MOVE * size * r).astype(np.float32)
+
+
 def path_differences(tree, o, d, tmax, reference: dict) -> dict[str, int]:
     """Per path of PATHS: how many rays' t or prim differ from `reference`
     (the counting path with culling, one thread)."""
@@ -44,9 +66,11 @@ def family_rows(tree, embree, tris, families: dict, rounds: int) -> list[dict]:
     """One row per family: counts per ray, Embree's answers checked, the
     paths compared, the hits-only time over Embree's."""
     rows = []
+    size = float(np.linalg.norm(tris.reshape(-1, 3).max(0) - tris.reshape(-1, 3).min(0)))
     for name, (o, d, tmax) in families.items():
         ref = embree.intersect(o, d, tmax=tmax)
         h = tree.intersect(o, d, tmax=tmax, threads=1)
+        moved = tree.intersect(moved_rays(o, d, size), d, tmax=tmax, threads=1)
         etmax = None if np.isinf(tmax).all() else tmax
         times = paired_rounds({
             "ours": Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1, counters=False)),
@@ -56,6 +80,7 @@ def family_rows(tree, embree, tris, families: dict, rounds: int) -> list[dict]:
         rows.append({
             "family": name, "rays": len(o),
             "steps": float(h["steps"].mean()), "tests": float(h["tests"].mean()),
+            "x_moved": float(h["steps"].mean() / max(moved["steps"].mean(), 1e-9)),
             "leaks": len(oracle.leaks(h, ref, triangles=tris, origins=o, directions=d,
                                       tmax=tmax)),
             "unexplained": len(c["unexplained"]),
@@ -78,7 +103,7 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
         embree = oracle.EmbreeTracer(tris)
         families = {n: ray_families.family(n, tris, count, seed) for n in ray_families.FAMILIES}
         out(f"\n{scene}: {len(tris):,} triangles, {count:,} rays per family")
-        out(f"{'method':<14}{'family':<24}{'steps':>9}{'tests':>9}{'leaks':>7}"
+        out(f"{'method':<14}{'family':<24}{'steps':>9}{'x moved':>9}{'tests':>9}{'leaks':>7}"
             f"{'unexpl':>8}{'paths!=':>8}{'x Embree':>10}")
         for method in methods:
             opts = {}
@@ -88,7 +113,8 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
             for r in family_rows(tree, embree, tris, families, rounds):
                 r.update(scene=scene, method=method)
                 rows.append(r)
-                out(f"{method:<14}{r['family']:<24}{r['steps']:>9.1f}{r['tests']:>9.1f}"
+                out(f"{method:<14}{r['family']:<24}{r['steps']:>9.1f}{r['x_moved']:>9.2f}"
+                    f"{r['tests']:>9.1f}"
                     f"{r['leaks']:>7}{r['unexplained']:>8}{sum(r['paths'].values()):>8}"
                     f"{r['vs_embree']:>10.2f}")
     return rows

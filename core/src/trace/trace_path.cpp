@@ -30,6 +30,14 @@ class PathRecord {
 public:
     explicit PathRecord(const Tree& tree) : tree_(tree) { depth_of_[0] = 0; }
 
+    // The walk starts again as the in-plane walk (single_ray.hpp, trace_ray):
+    // the path is that walk's.
+    void restart() {
+        path_ = TracePath();
+        depth_of_.clear();
+        depth_of_[0] = 0;
+    }
+
     // The walk's range [s0, s1] from t_e, back in the ray's t.
     void step(uint32_t index, float s0, float s1, double t_e) {
         const float t0 = float(t_e + s0), t1 = float(t_e + s1);
@@ -124,9 +132,9 @@ template <LeafBoxes kBoxes>
 void walk(const TreeView& view, const Vec3& o, const Vec3& d, float tmin, float tmax,
           path_walk::Closest& closest, PathRecord& record) {
     if (view.has_general)
-        path_walk::trace_one<kBoxes, true, false, false>(view, o, d, tmin, tmax, closest, record);
+        path_walk::trace_ray<kBoxes, true, false, false>(view, o, d, tmin, tmax, closest, record);
     else
-        path_walk::trace_one<kBoxes, false, false, false>(view, o, d, tmin, tmax, closest, record);
+        path_walk::trace_ray<kBoxes, false, false, false>(view, o, d, tmin, tmax, closest, record);
 }
 
 TracePath record_path(const Tree& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,

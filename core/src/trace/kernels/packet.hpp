@@ -26,6 +26,7 @@
 #include "tree.hpp"
 #include "trace/triangle.hpp"
 #include "trace/kernels/leaf_acceptance.hpp"
+#include "trace/kernels/single_ray.hpp"
 #include "trace/kernels/tree_view.hpp"
 #include "trace/kernels/walk_start.hpp"
 
@@ -433,9 +434,12 @@ inline void child_lanes(vfloat t_lo, vfloat t_hi, vfloat t0, vfloat t1, LaneMask
 // and a split packet's deferred group's entry and exit.
 constexpr int kPacketStack = 3 * 64 + 8;
 
-// Traces one packet's active lanes to their closest hits.
-inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask active, vfloat t0,
-                         vfloat t1, PacketHits& hits) {
+// Traces one packet's active lanes to their closest hits. Returns the lanes
+// that lie in a split plane somewhere on their walk: their hits are the
+// single-ray in-plane walk's (in_plane.hpp), which the caller traces again.
+inline LaneMask trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask active,
+                             vfloat t0, vfloat t1, PacketHits& hits) {
+    LaneMask in_plane = 0;
     PacketCell stack[kPacketStack];
     int top = 0;
     uint32_t index = 0;
@@ -447,6 +451,7 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
         const Node node = nodes[index];
         if (active && !node.is_leaf()) {
             const PacketCrossing x = cross_node(tree, rays, node);
+            in_plane |= active & lane_bits(x.t_lo != x.t_lo);
             const LaneMask down = active & x.down;
             LaneMask enter, leave;
             if (down && down != active) {
@@ -479,7 +484,7 @@ inline void trace_packet(const TreeView& tree, const PacketRays& rays, LaneMask 
         // lane). Only a leaf changes the hits, and an entry child starts
         // where its parent does, so the check is needed after pops only.
         do {
-            if (top == 0) return;
+            if (top == 0) return in_plane;
             const PacketCell& c = stack[--top];
             index = c.node, t0 = c.t0, t1 = c.t1;
             active = c.lanes & ~lane_bits(reach < t0);
@@ -498,7 +503,7 @@ inline void trace_packets(const TreeView& view, const RayBatch& batch, const Hit
         vfloat t0, t1, tmax;
         const LaneMask active = setup_packet(view, batch, first, n, rays, t0, t1, tmax);
         PacketHits hits{tmax, vfloat{}, vfloat{}, vint{} - 1};
-        if (active) trace_packet(view, rays, active, t0, t1, hits);
+        const LaneMask in_plane = active ? trace_packet(view, rays, active, t0, t1, hits) : 0;
         for (int i = 0; i < n; ++i) {
             const size_t k = first + size_t(i);
             float t = hits.t[i];
@@ -513,6 +518,13 @@ inline void trace_packets(const TreeView& view, const RayBatch& batch, const Hit
             out.prim[k] = prim;
             out.u[k] = hit ? hits.u[i] : 0.0f;
             out.v[k] = hit ? hits.v[i] : 0.0f;
+        }
+        // Rays lying in a split plane take the single-ray in-plane walk, as
+        // they do on every path.
+        for (LaneMask m = in_plane; m; m &= m - 1) {
+            const size_t k = first + size_t(__builtin_ctz(m));
+            trace_rays_of_tree<LeafBoxes::None, false, false, CountNothing>(view, batch, out, k,
+                                                                            k + 1);
         }
     }
 }

@@ -5,12 +5,14 @@
 // linkage: every level gets its own copy, and none leaks into another.
 #pragma once
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <type_traits>
 
 #include "trace/traverse.hpp"
 #include "trace/triangle.hpp"
+#include "trace/kernels/in_plane.hpp"
 #include "trace/kernels/leaf_acceptance.hpp"
 #include "trace/kernels/leaf_simd.hpp"
 #include "trace/kernels/ray_coherence.hpp"
@@ -97,6 +99,12 @@ struct StackEntry {
     float tmin, tmax;
 };
 
+// The in-plane walk's stack entry: also the sides of the remembered planes
+// its cell lies on (in_plane.hpp).
+struct InPlaneStackEntry : StackEntry {
+    InPlaneWalk::Sides sides;
+};
+
 // The counters are a compile-time policy of the traversal: CountEvery keeps
 // the heatmaps' and the statistics' counts of one ray, CountNothing is the
 // hits-only path, whose empty hooks leave no counting code behind. The hooks
@@ -107,6 +115,9 @@ struct StackEntry {
 // ray inspector, with this very loop.
 struct CountEvery {
     uint32_t steps = 0, general_steps = 0, tests = 0, culled = 0;
+    // The walk starts again, in the in-plane walk (trace_ray): what the
+    // ordinary walk counted until then is not part of the ray's walk.
+    void restart() { *this = CountEvery(); }
     void step(uint32_t /*node*/, float /*s0*/, float /*s1*/, double /*t_e*/) { ++steps; }
     void general_step() { ++general_steps; }
     void cull(uint32_t /*prim*/) { ++culled; }
@@ -123,6 +134,7 @@ struct CountEvery {
 };
 
 struct CountNothing {
+    void restart() {}
     void step(uint32_t, float, float, double) {}
     void general_step() {}
     void cull(uint32_t) {}
@@ -281,14 +293,34 @@ inline bool pop_cell(const StackEntry* stack, int& top, float reach, uint32_t& i
     return false;
 }
 
+// The same for the in-plane walk, which also takes back the cell's sides.
+inline bool pop_cell(const InPlaneStackEntry* stack, int& top, float reach, uint32_t& index,
+                     float& t0, float& t1, InPlaneWalk::Sides& sides) {
+    while (top > 0) {
+        const InPlaneStackEntry& e = stack[--top];
+        if (!(reach < e.tmin)) {
+            index = e.node;
+            t0 = e.tmin;
+            t1 = e.tmax;
+            sides = e.sides;
+            return true;
+        }
+    }
+    return false;
+}
+
 // One ray through the tree. kGeneral = false is the kd-only instantiation
 // for trees without general nodes (TreeView::has_general): every interior
 // node is then a kd node, and the general node's plane arithmetic and its
 // branch drop out of the hot loop. kPrefetchAbove: the loop for incoherent
-// rays (trace_single_rays).
-template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove,
+// rays (trace_single_rays). kInPlane: the in-plane walk (in_plane.hpp),
+// which remembers the planes the ray lies in and skips their flat cells.
+// The ordinary walk returns false, its work undone, for a ray that may lie
+// in a kd plane (at its start) or a general one (at the first general node
+// it is parallel to): trace_ray then takes the in-plane walk.
+template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove, bool kInPlane,
           class Counters>
-void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+bool trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                Closest& hit, Counters& count) {
     hit.t = tmax;
     // Plain arrays: the axis is a run-time index in the hot loop.
@@ -301,7 +333,7 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     const float* org = walk.org;
     hit.reach = walk_reach(tmax, t_e);
     float t0 = walk_lower(tmin, t_e), t1 = walk_upper(tmax, t_e);
-    if (!clip_to_box(tree.bounds, org, idir, dir, walk.org_err, t0, t1)) return;
+    if (!clip_to_box(tree.bounds, org, idir, dir, walk.org_err, t0, t1)) return true;
     float axis_err[3];
     axis_crossing_errors(walk, t0, t1, axis_err);
     // A far ray's triangle test starts there too (ShearedRay::t_offset,
@@ -321,9 +353,26 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
     // test's displacement from the exact ray (walk_start.hpp, kTestRel).
     const float pad = tree.cull_pad + walk.slack;
     Mailbox mailbox;
-    StackEntry stack[72];
+    using Entry = std::conditional_t<kInPlane, InPlaneStackEntry, StackEntry>;
+    Entry stack[72];
     int top = 0;
     uint32_t index = 0;
+    // The in-plane walk's planes, and the sides of them the cell lies on. A
+    // ray lying in a face plane of the scene box starts on its inner side.
+    InPlaneWalk in_plane;
+    InPlaneWalk::Sides sides = 0;
+    if constexpr (kInPlane) {
+        for (int k = 0; k < 3; ++k) {
+            if (dir[k] != 0.0f) continue;
+            if (org[k] == tree.bounds.lo[k]) {
+                const int i = in_plane.index_of(axis_plane(k, tree.bounds.lo[k]));
+                if (i >= 0) sides = InPlaneWalk::with(sides, i, PlaneSide::Above);
+            } else if (org[k] == tree.bounds.hi[k]) {
+                const int i = in_plane.index_of(axis_plane(k, tree.bounds.hi[k]));
+                if (i >= 0) sides = InPlaneWalk::with(sides, i, PlaneSide::Below);
+            }
+        }
+    }
 
     for (;;) {
         const Node node = nodes[index];
@@ -361,6 +410,11 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
                 const float no = p.nx * org[0] + p.ny * org[1] + p.nz * org[2];
                 const float nd = p.nx * dir[0] + p.ny * dir[1] + p.nz * dir[2];
                 const float inv_nd = 1.0f / nd;
+                // Parallel to the plane (or within a denormal of it): the ray
+                // may lie in it, which the in-plane walk handles.
+                if constexpr (!kInPlane)
+                    if (!(std::fabs(inv_nd) < kInf)) [[unlikely]]
+                        return false;
                 tplane = (p.d - no) * inv_nd;
                 // Parallel to the plane (t = +-inf): on the origin's side for
                 // good, unless the origin lies within the error of the plane.
@@ -396,11 +450,36 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
                 index = exit;
             } else if (t_lo > t1) {
                 index = entry;
+            } else if (kInPlane && t_lo != t_lo) {
+                // The ray lies in the plane (in_plane.hpp). (The ordinary
+                // walk never gets here: rays that can lie in a plane took
+                // the in-plane walk, see trace_ray.)
+                if constexpr (kInPlane) {
+                    const bool kd = !kGeneral || node.is_kd();
+                    const int i = in_plane.index_of(kd ? axis_plane(node.axis(), node.split)
+                                                       : planes[node.first]);
+                    const PlaneSide side = i >= 0 ? InPlaneWalk::side(sides, i) : PlaneSide::Unknown;
+                    if (side != PlaneSide::Unknown) {
+                        // The cell lies on one side: the other child is flat.
+                        index = side == PlaneSide::Below ? index + 1 : above_child;
+                    } else {
+                        // Both children over the whole range, each on its side.
+                        const PlaneSide entry_side = down ? PlaneSide::Above : PlaneSide::Below;
+                        const PlaneSide exit_side = down ? PlaneSide::Below : PlaneSide::Above;
+                        stack[top++] = {{exit, t0, t1},
+                                        i >= 0 ? InPlaneWalk::with(sides, i, exit_side) : sides};
+                        if (i >= 0) sides = InPlaneWalk::with(sides, i, entry_side);
+                        index = entry;
+                    }
+                }
             } else {
                 // The far child is visited later, unless a hit ends the ray
                 // first: fetch its node meanwhile.
                 __builtin_prefetch(nodes + exit);
-                stack[top++] = {exit, std::max(t0, t_lo), t1};
+                if constexpr (kInPlane)
+                    stack[top++] = {{exit, std::max(t0, t_lo), t1}, sides};
+                else
+                    stack[top++] = {exit, std::max(t0, t_lo), t1};
                 index = entry;
                 t1 = std::min(t1, t_hi);
             }
@@ -414,8 +493,95 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
         // closest hit. (Not `hit.t <= t1` here: with widened crossings, and
         // for rays in a plane, a cell still on the stack may start before
         // this one ends.)
-        if (!pop_cell(stack, top, hit.reach, index, t0, t1)) break;
+        if constexpr (kInPlane) {
+            if (!pop_cell(stack, top, hit.reach, index, t0, t1, sides)) break;
+        } else {
+            if (!pop_cell(stack, top, hit.reach, index, t0, t1)) break;
+        }
     }
+    return true;
+}
+
+inline bool denormal_or_zero(float x) {
+    return (std::bit_cast<uint32_t>(x) & 0x7f800000u) == 0;
+}
+
+// One ray, for trace_path (trace_path.cpp, whose policy records the walk):
+// the ordinary walk, or, for a ray that may lie in a split plane, the
+// in-plane walk from the start (in_plane.hpp), as trace_rays traces it.
+// The batch loop (trace_rays) defers such rays instead (trace_ray_at).
+template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove, class Counters>
+inline void trace_ray(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+                      Closest& hit, Counters& count) {
+    if (!(denormal_or_zero(d.x) | denormal_or_zero(d.y) | denormal_or_zero(d.z)) &&
+        trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, false>(tree, o, d, tmin, tmax,
+                                                                         hit, count))
+        return;
+    hit = Closest();
+    count.restart();
+    trace_one<kBoxes, kGeneral, false, false, true>(tree, o, d, tmin, tmax, hit, count);
+}
+
+// What trace_rays writes as a ray's prim when the ordinary walk left it to
+// the in-plane walk, which traces it after the loop (never returned).
+constexpr int32_t kInPlaneLater = -2;
+
+// Traces ray i of the batch and stores its hit and counts; or, when the
+// ordinary walk (kInPlane = false) leaves the ray to the in-plane walk,
+// stores nothing and returns false.
+template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove, bool kInPlane,
+          class Counters>
+inline bool trace_ray_at(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                         size_t i) {
+    const double scale = view.scale;
+    const float* o = rays.origins + 3 * i;
+    const float* d = rays.directions + 3 * i;
+    // Only a ray with an infinite inverse direction component can lie in a
+    // kd plane, and only a zero or denormal component has one: such rays
+    // take the in-plane walk from the start. (Tested on the bits, here, this
+    // is nearly free; as a test of the inverses inside trace_one it cost
+    // 2-3 % of the instructions per ray.)
+    if constexpr (!kInPlane)
+        if (denormal_or_zero(d[0]) | denormal_or_zero(d[1]) | denormal_or_zero(d[2])) [[unlikely]]
+            return false;
+    Closest c;
+    Counters count;
+    const float tmin = rays.tmin[i * rays.tmin_stride];
+    const float tmax = rays.tmax[i * rays.tmax_stride];
+    if (scale == 1.0) {
+        if (!trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, kInPlane>(
+                view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c, count))
+            return false;
+    } else {
+        // Into the tree's scaled space: o and the range scale, d does not.
+        const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+        if (!trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, kInPlane>(
+                view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale), float(tmax * scale), c,
+                count))
+            return false;
+        c.t = float(c.t * (1.0 / scale));
+        if (!(c.t < tmax)) c.prim = -1;  // tmax * scale rounded up (or overflowed)
+    }
+    const bool hit = c.prim >= 0;
+    hits.t[i] = hit ? c.t : kInf;
+    hits.prim[i] = c.prim;
+    hits.u[i] = hit ? c.u : 0.0f;
+    hits.v[i] = hit ? c.v : 0.0f;
+    count.store(hits, i);
+    return true;
+}
+
+// The rays of [begin, end) that the ordinary walk left (kInPlaneLater),
+// through the in-plane walk. Out of line: a call in the ray loop itself,
+// even one never taken, cost the ordinary walk 2-3 % of its instructions.
+template <LeafBoxes kBoxes, bool kGeneral, class Counters>
+__attribute__((noinline, flatten)) void trace_in_plane_rays(const TreeView& view,
+                                                            const RayBatch& rays,
+                                                            const HitBatch& hits, size_t begin,
+                                                            size_t end) {
+    for (size_t i = begin; i < end; ++i)
+        if (hits.prim[i] == kInPlaneLater)
+            trace_ray_at<kBoxes, kGeneral, false, false, true, Counters>(view, rays, hits, i);
 }
 
 // The ray loop of one traversal kind (kGeneral, kSimdLeaves, kPrefetchAbove:
@@ -423,33 +589,15 @@ void trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
 template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove, class Counters>
 void trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits, size_t begin,
                 size_t end) {
-    const double scale = view.scale, inv_scale = 1.0 / view.scale;
+    bool in_plane = false;
     for (size_t i = begin; i < end; ++i) {
-        const float* o = rays.origins + 3 * i;
-        const float* d = rays.directions + 3 * i;
-        Closest c;
-        Counters count;
-        const float tmin = rays.tmin[i * rays.tmin_stride];
-        const float tmax = rays.tmax[i * rays.tmax_stride];
-        if (scale == 1.0) {
-            trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove>(view, Vec3(o[0], o[1], o[2]),
-                                                     Vec3(d[0], d[1], d[2]), tmin, tmax, c, count);
-        } else {
-            // Into the tree's scaled space: o and the range scale, d does not.
-            const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
-            trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove>(view, so, Vec3(d[0], d[1], d[2]),
-                                                     float(tmin * scale), float(tmax * scale), c,
-                                                     count);
-            c.t = float(c.t * inv_scale);
-            if (!(c.t < tmax)) c.prim = -1;  // tmax * scale rounded up (or overflowed)
+        if (!trace_ray_at<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, false, Counters>(
+                view, rays, hits, i)) [[unlikely]] {
+            hits.prim[i] = kInPlaneLater;
+            in_plane = true;
         }
-        const bool hit = c.prim >= 0;
-        hits.t[i] = hit ? c.t : kInf;
-        hits.prim[i] = c.prim;
-        hits.u[i] = hit ? c.u : 0.0f;
-        hits.v[i] = hit ? c.v : 0.0f;
-        count.store(hits, i);
     }
+    if (in_plane) trace_in_plane_rays<kBoxes, kGeneral, Counters>(view, rays, hits, begin, end);
 }
 
 // The kd-only or general traversal (TreeView::has_general).
