@@ -22,13 +22,54 @@ namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-// The kernel's counter hooks (CountEvery in single_ray.hpp), recording each
-// visited node and each triangle reference of the visited leaves. A node's
-// depth is its parent's plus one: the parent was visited before it, and the
-// record keeps the depths of the children of every interior node it visits.
-class PathRecord {
+// What both recorders share: the path so far, the depths of the nodes still
+// to visit (a node's depth is its parent's plus one: the parent was visited
+// before it, and the record keeps the depths of the children of every
+// interior node it visits), and the triangle tests of the visited leaves.
+class PathRecorder {
 public:
-    explicit PathRecord(const Tree& tree) : tree_(tree) { depth_of_[0] = 0; }
+    void test(uint32_t prim) {
+        ++path_.n_tests;
+        tested_ = prim;
+    }
+    void hit(float t) { record(tested_, TestResult::Hit, t); }
+    void miss() { record(tested_, TestResult::Miss, kNaN); }
+
+    TracePath take(const path_walk::Closest& closest) {
+        path_.t = closest.t;
+        path_.prim = closest.prim;
+        path_.u = closest.u;
+        path_.v = closest.v;
+        return std::move(path_);
+    }
+
+protected:
+    explicit PathRecorder(const Tree& tree) : tree_(tree) { depth_of_[0] = 0; }
+
+    // Records node `index` of `kind` over the walk's range [s0, s1] from
+    // t_e, back in the ray's t; returns its depth.
+    int32_t record_step(uint32_t index, NodeKind kind, float s0, float s1, double t_e) {
+        const int32_t depth = depth_of_.at(index);
+        path_.steps.push_back({index, depth, uint8_t(kind), float(t_e + s0), float(t_e + s1)});
+        ++path_.n_steps;
+        return depth;
+    }
+    // A triangle belongs to the leaf visited last.
+    void record(uint32_t prim, TestResult result, float t) {
+        path_.tests.push_back({uint32_t(path_.steps.size() - 1), prim, result, t});
+    }
+
+    const Tree& tree_;
+    std::unordered_map<uint32_t, int32_t> depth_of_;
+    uint32_t tested_ = 0;
+    TracePath path_;
+};
+
+// The kernel's counter hooks (CountEvery in single_ray.hpp), recording each
+// visited node and each triangle reference of the visited leaves.
+class PathRecord : public PathRecorder {
+public:
+    explicit PathRecord(const Tree& tree) : PathRecorder(tree) {}
 
     // The walk starts again as the in-plane walk (single_ray.hpp, trace_ray):
     // the path is that walk's.
@@ -38,13 +79,9 @@ public:
         depth_of_[0] = 0;
     }
 
-    // The walk's range [s0, s1] from t_e, back in the ray's t.
     void step(uint32_t index, float s0, float s1, double t_e) {
-        const float t0 = float(t_e + s0), t1 = float(t_e + s1);
         const Node& node = tree_.nodes[index];
-        const int32_t depth = depth_of_.at(index);
-        path_.steps.push_back({index, depth, uint8_t(node.kind()), t0, t1});
-        ++path_.n_steps;
+        const int32_t depth = record_step(index, node.kind(), s0, s1, t_e);
         if (node.is_leaf()) return;
         depth_of_[index + 1] = depth + 1;
         depth_of_[node.is_kd() ? node.kd_above() : node.general_above()] = depth + 1;
@@ -55,75 +92,23 @@ public:
         record(prim, TestResult::Culled, kNaN);
     }
     void seen(uint32_t prim) { record(prim, TestResult::Seen, kNaN); }
-    void test(uint32_t prim) {
-        ++path_.n_tests;
-        tested_ = prim;
-    }
-    void hit(float t) { record(tested_, TestResult::Hit, t); }
-    void miss() { record(tested_, TestResult::Miss, kNaN); }
-
-    TracePath take(const path_walk::Closest& closest) {
-        path_.t = closest.t;
-        path_.prim = closest.prim;
-        path_.u = closest.u;
-        path_.v = closest.v;
-        return std::move(path_);
-    }
-
-private:
-    const Tree& tree_;
-    std::unordered_map<uint32_t, int32_t> depth_of_;
-    uint32_t tested_ = 0;
-    TracePath path_;
-
-    // A triangle belongs to the leaf visited last.
-    void record(uint32_t prim, TestResult result, float t) {
-        path_.tests.push_back({uint32_t(path_.steps.size() - 1), prim, result, t});
-    }
 };
 
 // The BVH kernel's hooks (BvhCountEvery), recording as PathRecord does: a
 // node's children are the pair after its `first`, one level deeper.
-class BvhPathRecord {
+class BvhPathRecord : public PathRecorder {
 public:
-    explicit BvhPathRecord(const Tree& tree) : tree_(tree) { depth_of_[0] = 0; }
+    explicit BvhPathRecord(const Tree& tree) : PathRecorder(tree) {}
 
     void step(uint32_t index, float s0, float s1, double t_e) {
-        const float t0 = float(t_e + s0), t1 = float(t_e + s1);
         const BvhNode& node = tree_.bvh_nodes[index];
-        const int32_t depth = depth_of_.at(index);
-        const NodeKind kind = node.is_leaf() ? NodeKind::Leaf : NodeKind::Box;
-        path_.steps.push_back({index, depth, uint8_t(kind), t0, t1});
-        ++path_.n_steps;
+        const int32_t depth =
+            record_step(index, node.is_leaf() ? NodeKind::Leaf : NodeKind::Box, s0, s1, t_e);
         if (node.is_leaf()) return;
         depth_of_[node.left()] = depth + 1;
         depth_of_[node.right()] = depth + 1;
     }
     void box_test(uint32_t n) { path_.n_box_tests += n; }
-    void test(uint32_t prim) {
-        ++path_.n_tests;
-        tested_ = prim;
-    }
-    void hit(float t) { record(tested_, TestResult::Hit, t); }
-    void miss() { record(tested_, TestResult::Miss, kNaN); }
-
-    TracePath take(const path_walk::Closest& closest) {
-        path_.t = closest.t;
-        path_.prim = closest.prim;
-        path_.u = closest.u;
-        path_.v = closest.v;
-        return std::move(path_);
-    }
-
-private:
-    const Tree& tree_;
-    std::unordered_map<uint32_t, int32_t> depth_of_;
-    uint32_t tested_ = 0;
-    TracePath path_;
-
-    void record(uint32_t prim, TestResult result, float t) {
-        path_.tests.push_back({uint32_t(path_.steps.size() - 1), prim, result, t});
-    }
 };
 
 // The kernel's loop for this tree and culling mode, as trace_single_rays
