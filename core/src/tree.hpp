@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "bvh_node.hpp"
+#include "bvh_wide_node.hpp"
 #include "geometry.hpp"
 
 namespace bsp {
@@ -192,6 +193,17 @@ struct Tree {
     // Structure::Bvh: the box nodes (root first, children in pairs); refs[]
     // holds the leaves' triangles, nodes and planes stay empty.
     std::vector<BvhNode> bvh_nodes;
+    // Structure::Bvh: the same tree collapsed into 4-wide nodes (root first),
+    // which the hits-only path traces (builders/bvh_collapse.hpp). Derived
+    // from bvh_nodes, so not part of the tree's hash (node_bytes).
+    std::vector<BvhWideNode> bvh_wide;
+    // The binary node of each wide lane (4 per wide node): the counters and
+    // trace_path report the walk in the binary tree's numbering.
+    std::vector<uint32_t> bvh_wide_binary;
+    // Structure::Bvh: the triangles in leaf order (bvh_leaf_tris[i] is
+    // triangles[refs[i]]), so that a leaf's triangles are side by side and
+    // the wide walk reads them without the refs[] indirection.
+    std::vector<Triangle> bvh_leaf_tris;
     // Culling boxes: per triangle (LeafBoxes::Triangle) or per reference slot
     // of refs[] (LeafBoxes::Clipped, where leaves never inline a triangle).
     std::vector<Box> boxes;

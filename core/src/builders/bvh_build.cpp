@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "builders/build_tree.hpp"
+#include "builders/bvh_collapse.hpp"
 #include "parallel.hpp"
 
 namespace bsp {
@@ -355,6 +356,14 @@ Tree build_bvh_tree(std::vector<Triangle> triangles, const BuildOptions& options
     BuildStats& st = tree.stats;
     tree.bvh_nodes = std::move(r.nodes);
     tree.refs = std::move(r.order);
+    // Its 4-wide collapse, which the hits-only path traces (about one wide
+    // node per three binary interior nodes).
+    budget.charge(tree.bvh_nodes.size() / 6 * (sizeof(BvhWideNode) + 4 * sizeof(uint32_t)), -1,
+                  "the wide BVH");
+    tree.bvh_wide = collapse_bvh(tree.bvh_nodes, &tree.bvh_wide_binary);
+    budget.charge(tree.refs.size() * sizeof(Triangle), -1, "the triangles in leaf order");
+    tree.bvh_leaf_tris.reserve(tree.refs.size());
+    for (const uint32_t p : tree.refs) tree.bvh_leaf_tris.push_back(tree.triangles[p]);
     st.nodes = tree.bvh_nodes.size();
     st.leaves = r.leaves;
     st.interior_nodes = st.nodes - st.leaves;
@@ -383,7 +392,10 @@ Tree build_bvh_tree(std::vector<Triangle> triangles, const BuildOptions& options
     st.warnings = degeneracy_warnings(st);
     tree.cull_pad = 2.0f * robust_epsilon(tree.triangles);
     st.box_bytes = 0;
-    st.bytes = tree.bvh_nodes.size() * sizeof(BvhNode) + tree.refs.size() * sizeof(uint32_t) +
+    st.bytes = tree.bvh_nodes.size() * sizeof(BvhNode) +
+               tree.bvh_wide.size() * sizeof(BvhWideNode) + tree.refs.size() * sizeof(uint32_t) +
+               tree.bvh_leaf_tris.size() * sizeof(Triangle) +
+               tree.bvh_wide_binary.size() * sizeof(uint32_t) +
                tree.triangles.size() * sizeof(Triangle);
     const double total = double(st.bytes);
     if (total > budget.limit_bytes())

@@ -15,6 +15,7 @@
 // its own with internal linkage (see kernels/trace_kernels.cpp).
 #define BSPLAB_ISA_NS path_walk
 #include "trace/kernels/bvh_single_ray.hpp"
+#include "trace/kernels/bvh_wide_single_ray.hpp"
 #include "trace/kernels/single_ray.hpp"
 
 namespace bsp {
@@ -94,8 +95,11 @@ public:
     void seen(uint32_t prim) { record(prim, TestResult::Seen, kNaN); }
 };
 
-// The BVH kernel's hooks (BvhCountEvery), recording as PathRecord does: a
-// node's children are the pair after its `first`, one level deeper.
+// The BVH kernel's hooks (BvhCountEvery), recording as PathRecord does, in
+// the binary tree's numbering. The wide walk enters a wide node's lanes,
+// binary nodes up to kLaneLevels below the node it visited last on that
+// branch: a visited interior node sets the depths of its descendants that
+// deep.
 class BvhPathRecord : public PathRecorder {
 public:
     explicit BvhPathRecord(const Tree& tree) : PathRecorder(tree) {}
@@ -104,11 +108,23 @@ public:
         const BvhNode& node = tree_.bvh_nodes[index];
         const int32_t depth =
             record_step(index, node.is_leaf() ? NodeKind::Leaf : NodeKind::Box, s0, s1, t_e);
-        if (node.is_leaf()) return;
-        depth_of_[node.left()] = depth + 1;
-        depth_of_[node.right()] = depth + 1;
+        set_depths(index, depth, kLaneLevels);
     }
     void box_test(uint32_t n) { path_.n_box_tests += n; }
+
+private:
+    // A 4-wide node opens at most two of its binary nodes' children: its
+    // lanes lie at most three levels below the binary node it stands for.
+    static constexpr int kLaneLevels = BvhWideNode::kWidth - 1;
+
+    void set_depths(uint32_t index, int32_t depth, int levels) {
+        const BvhNode& node = tree_.bvh_nodes[index];
+        if (node.is_leaf() || levels == 0) return;
+        for (const uint32_t c : {node.left(), node.right()}) {
+            depth_of_[c] = depth + 1;
+            set_depths(c, depth + 1, levels - 1);
+        }
+    }
 };
 
 // The kernel's loop for this tree and culling mode, as trace_single_rays
@@ -128,7 +144,7 @@ TracePath record_path(const Tree& tree, const Vec3& o, const Vec3& d, float tmin
     if (tree.structure == Structure::Bvh) {
         BvhPathRecord record(tree);
         path_walk::Closest closest;
-        path_walk::bvh_trace_one(view, o, d, tmin, tmax, closest, record);
+        path_walk::bvh_wide_trace_one(view, o, d, tmin, tmax, closest, record);
         return record.take(closest);
     }
     PathRecord record(tree);

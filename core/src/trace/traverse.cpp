@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <bit>
+#include <cstdlib>
+#include <string>
 #include <stdexcept>
 
 #include "trace/cpu_dispatch.hpp"
@@ -15,6 +17,20 @@ namespace bsp {
 namespace {
 
 constexpr int kCounterArrays = 5;
+
+// The BVH's hits-only walk: the 4-wide one, or - with the environment
+// variable BSPLAB_BVH_WALK=binary, read once - the binary walk, for the
+// layout's benchmark (docs/performance.md, "The BVH"): the same hits.
+TraceRange bvh_hits_kernel() {
+    static const bool binary = [] {
+        const char* env = std::getenv("BSPLAB_BVH_WALK");
+        const std::string walk = env ? env : "";
+        if (!walk.empty() && walk != "binary" && walk != "wide")
+            throw std::invalid_argument("BSPLAB_BVH_WALK=" + walk + ": use wide or binary");
+        return walk == "binary";
+    }();
+    return binary ? selected_kernels().bvh_binary_hits : selected_kernels().bvh_single_ray[0];
+}
 
 int counter_arrays(const HitBatch& hits) {
     return (hits.steps != nullptr) + (hits.general_steps != nullptr) + (hits.tests != nullptr) +
@@ -44,7 +60,8 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
         throw std::invalid_argument("intersect: give all five counter arrays or none");
     if (tree.structure == Structure::Bvh) {
         // No culling: a BVH leaf's box is already its triangles' tight box.
-        run(selected_kernels().bvh_single_ray[given != 0], tree, rays, hits, threads, progress);
+        run(given != 0 ? selected_kernels().bvh_single_ray[1] : bvh_hits_kernel(), tree, rays,
+            hits, threads, progress);
         return;
     }
     // The kd/BSP kernels do no box tests.
@@ -64,8 +81,7 @@ void intersect_packets(const Tree& tree, const RayBatch& rays, HitBatch& hits, i
             "intersect: packets trace hits only; the counters are single-ray quantities "
             "(use counters=False with packets=True)");
     // A BVH's packets are its single rays (the same hits; no packet kernel yet).
-    run(tree.structure == Structure::Bvh ? selected_kernels().bvh_single_ray[0]
-                                         : selected_kernels().packets,
+    run(tree.structure == Structure::Bvh ? bvh_hits_kernel() : selected_kernels().packets,
         tree, rays, hits, threads, progress);
 }
 

@@ -11,6 +11,7 @@
 // -ffp-contract=off on every level: no fused multiply-add, so each level's
 // arithmetic - and so its hits - is bit-identical to the baseline's.
 #include "trace/kernels/bvh_single_ray.hpp"
+#include "trace/kernels/bvh_wide_single_ray.hpp"
 #include "trace/kernels/kernel_set.hpp"
 #include "trace/kernels/packet.hpp"
 #include "trace/kernels/single_ray.hpp"
@@ -38,6 +39,12 @@ __attribute__((flatten)) void bvh_entry(const TreeView& view, const RayBatch& ra
     bvh_trace_rays<Counters>(view, rays, hits, begin, end);
 }
 
+template <class Counters>
+__attribute__((flatten)) void bvh_wide_entry(const TreeView& view, const RayBatch& rays,
+                                             const HitBatch& hits, size_t begin, size_t end) {
+    bvh_wide_trace_rays<Counters>(view, rays, hits, begin, end);
+}
+
 constexpr LeafBoxes kNone = LeafBoxes::None, kTri = LeafBoxes::Triangle,
                     kClip = LeafBoxes::Clipped;
 
@@ -52,7 +59,8 @@ const KernelSet& kernel_set() {
           single_ray_entry<kClip, CountEvery>}},
         packet_entry,
         kLanes,
-        {bvh_entry<BvhCountNothing>, bvh_entry<BvhCountEvery>}};
+        {bvh_wide_entry<BvhCountNothing>, bvh_wide_entry<BvhCountEvery>},
+        bvh_entry<BvhCountNothing>};
     return set;
 }
 

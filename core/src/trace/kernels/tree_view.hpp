@@ -36,6 +36,10 @@ struct TreeView {
     float mean_leaf_refs;
     // Structure::Bvh: the box nodes (null for kd and BSP trees).
     const BvhNode* bvh_nodes;
+    // Structure::Bvh: its 4-wide collapse (the hits-only kernel's nodes).
+    const BvhWideNode* bvh_wide;
+    const Triangle* bvh_leaf_tris;  // Structure::Bvh: the triangles in refs[] order
+    const uint32_t* bvh_wide_binary;  // Structure::Bvh: each wide lane's binary node
 };
 
 inline TreeView make_tree_view(const Tree& tree) {
@@ -60,7 +64,10 @@ inline TreeView make_tree_view(const Tree& tree) {
                     !tree.planes.empty(),
                     float(double(tree.refs.size()) /
                           double(std::max<uint64_t>(1, tree.stats.leaves - tree.stats.empty_leaves))),
-                    tree.structure == Structure::Bvh ? tree.bvh_nodes.data() : nullptr};
+                    tree.structure == Structure::Bvh ? tree.bvh_nodes.data() : nullptr,
+                    tree.structure == Structure::Bvh ? tree.bvh_wide.data() : nullptr,
+                    tree.structure == Structure::Bvh ? tree.bvh_leaf_tris.data() : nullptr,
+                    tree.structure == Structure::Bvh ? tree.bvh_wide_binary.data() : nullptr};
 }
 
 }  // namespace bsp

@@ -1,0 +1,237 @@
+// The BVH's hits-only single-ray kernel: the walk of the 4-wide nodes
+// (bvh_wide_node.hpp) that builders/bvh_collapse.cpp makes of the binary
+// tree. At each node one four-lane slab test gives every child's range; the
+// children entered are visited nearest first (the others pushed, farthest
+// first), with early exit, the same walk start, the same triangle test, the
+// same leaf acceptance and the same tie rule as the binary walk
+// (bvh_single_ray.hpp) - whose hits it gives bit for bit.
+//
+// Why bit for bit: each lane's arithmetic is BvhPairTest's exactly - the
+// near face's crossing (x - o) * r - e and the far face's (x - o) * r + e,
+// where the pair test computes -((x - o) * r) - e = -((x - o) * r + e); MAXPS
+// and MINPS return their second operand where the first is NaN (a ray in a
+// face plane) and where both are zeros, as the pair test's accumulator does.
+// The leaves are the binary tree's, so a leaf is entered with the same range
+// and accepts the same hits; only the order of the visits differs, and the
+// closest hit with its tie rule (the smallest triangle index of equal t)
+// does not depend on the order.
+//
+// Every path walks it - hits only, packets, counting, trace_path - so that
+// every path gives the same answer bit for bit. (Not quite order-free: a
+// ray lying in a triangle's plane gets a meaningless plane distance, which
+// a leaf accepts where its walk range meets the triangle's box, so for such
+// rays a visit order can decide which of two leaves answers first. The
+// binary walk, bvh_single_ray.hpp, is kept as the reference of the C++
+// tests on rays off the triangles' planes, and for the layout benchmark.)
+//
+// Included by kernels/trace_kernels.cpp inside one instruction-set level's
+// namespace, like single_ray.hpp.
+#pragma once
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+
+#include <xmmintrin.h>
+
+#include "bvh_wide_node.hpp"
+#include "trace/kernels/bvh_single_ray.hpp"
+
+#ifndef BSPLAB_ISA_NS
+#error "bvh_wide_single_ray.hpp is compiled per instruction set: include it from trace_kernels.cpp"
+#endif
+
+namespace bsp::BSPLAB_ISA_NS {
+namespace {
+
+// Up to three children pushed per level, one level per binary level at most.
+constexpr int kBvhWideStack = 3 * 64 + 4;
+
+struct WideStackEntry {
+    uint32_t child, count;  // a wide node (count = kInterior) or a leaf's refs[] slice
+    float tmin, tmax;
+    uint32_t lane;  // 4 x its wide node + its lane: its binary node, for the counters
+};
+
+// The four-lane slab test (see the file's comment).
+struct BvhQuadTest {
+    __m128 org[3], idir[3], err[3];
+    // Byte offsets in a node of each axis's near and far faces: the high one
+    // is near where d[k] < 0 (or -0). Chosen once per ray, so that the node
+    // test loads the faces it needs and selects nothing.
+    size_t near_at[3], far_at[3];
+
+    explicit BvhQuadTest(const BvhRay& r) {
+        for (int k = 0; k < 3; ++k) {
+            org[k] = _mm_set1_ps(r.org[k]);
+            idir[k] = _mm_set1_ps(r.idir[k]);
+            err[k] = _mm_set1_ps(r.err[k]);
+            const size_t lo = offsetof(BvhWideNode, lo) + k * sizeof(float[4]),
+                         hi = offsetof(BvhWideNode, hi) + k * sizeof(float[4]);
+            near_at[k] = r.neg[k] ? hi : lo;
+            far_at[k] = r.neg[k] ? lo : hi;
+        }
+    }
+
+    // The lanes the ray enters within [s0, s1]; their ranges in enter/exit.
+    int test(const BvhWideNode& n, float s0, float s1, __m128& enter, __m128& exit) const {
+        __m128 en = _mm_set1_ps(s0), ex = _mm_set1_ps(s1);
+        const char* base = reinterpret_cast<const char*>(&n);
+        for (int k = 0; k < 3; ++k) {
+            const __m128 nearf = _mm_load_ps(reinterpret_cast<const float*>(base + near_at[k]));
+            const __m128 farf = _mm_load_ps(reinterpret_cast<const float*>(base + far_at[k]));
+            const __m128 tn = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(nearf, org[k]), idir[k]), err[k]);
+            const __m128 tf = _mm_add_ps(_mm_mul_ps(_mm_sub_ps(farf, org[k]), idir[k]), err[k]);
+            en = _mm_max_ps(tn, en);
+            ex = _mm_min_ps(tf, ex);
+        }
+        enter = en;
+        exit = ex;
+        return _mm_movemask_ps(_mm_cmple_ps(en, ex));
+    }
+};
+
+// One ray through the wide BVH. The counters (bvh_single_ray.hpp's hooks)
+// see the binary nodes the walk enters: the root, then every lane the walk
+// takes, interior or leaf (so steps are the nodes visited, as on the
+// binary walk, without the levels the wide nodes skip), and the box tests
+// of the wide nodes visited, four each, plus the root's box.
+template <class Counters>
+__attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tree, const Vec3& o,
+                                                              const Vec3& d, float tmin,
+                                                              float tmax, Closest& hit,
+                                                              Counters& count_) {
+    hit.t = tmax;
+    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
+    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
+    const WalkStart walk(tree, ray_org, dir, idir);
+    const double t_e = walk.t_e;
+    const float* org = walk.org;
+    hit.reach = walk_reach(tmax, t_e);
+    const float s_lo = walk_lower(tmin, t_e), s_hi = walk_upper(tmax, t_e);
+    float t0 = s_lo, t1 = s_hi;
+    count_.box_test(1);
+    if (!clip_to_box(tree.bvh_nodes[0].box(), org, idir, dir, walk.org_err, t0, t1)) return;
+    BvhRay ray;
+    axis_crossing_errors(walk, t0, t1, ray.err);
+    for (int k = 0; k < 3; ++k) {
+        ray.org[k] = org[k];
+        ray.idir[k] = idir[k];
+        ray.neg[k] = std::signbit(dir[k]);
+    }
+    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
+                          walk.test_t);
+    const BvhQuadTest quad(ray);
+    const float pad = tree.cull_pad + walk.slack;
+    const uint32_t* refs = tree.refs;
+    const Triangle* leaf_tris = tree.bvh_leaf_tris;
+    const BvhWideNode* nodes = tree.bvh_wide;
+    const uint32_t* binary_of = tree.bvh_wide_binary;
+    WideStackEntry stack[kBvhWideStack];
+    int top = 0;
+    // The current item: a wide node, or a leaf (count != kInterior).
+    uint32_t child = 0, count = BvhWideNode::kInterior;
+    if (tree.bvh_nodes[0].is_leaf()) {  // a tree of one leaf: the wide root's lane 0 is it
+        child = nodes[0].first(0);
+        count = nodes[0].leaf_count(0);
+    }
+    count_.step(0, t0, t1, t_e);
+    for (;;) {
+        if (count == BvhWideNode::kInterior) {
+            const BvhWideNode& node = nodes[child];
+            count_.box_test(BvhWideNode::kWidth);
+            __m128 en4, ex4;
+            int mask = quad.test(node, s_lo, std::min(s_hi, hit.reach), en4, ex4);
+            alignas(16) float en[4], ex[4];
+            _mm_store_ps(en, en4);
+            _mm_store_ps(ex, ex4);
+            if (mask != 0) {
+                // The nearest entered lane is taken now; the others are
+                // pushed farthest first, so that they pop nearest first.
+                int lanes[4], k = 0;
+                while (mask) {
+                    lanes[k++] = __builtin_ctz(unsigned(mask));
+                    mask &= mask - 1;
+                }
+                for (int i = 1; i < k; ++i)  // insertion sort by entry, farthest first
+                    for (int j = i; j > 0 && en[lanes[j - 1]] < en[lanes[j]]; --j)
+                        std::swap(lanes[j - 1], lanes[j]);
+                for (int i = 0; i < k - 1; ++i) {
+                    const int l = lanes[i];
+                    stack[top++] = {node.child[l], node.count[l], en[l], ex[l],
+                                    BvhWideNode::kWidth * child + uint32_t(l)};
+                }
+                const int l = lanes[k - 1];
+                const uint32_t at = BvhWideNode::kWidth * child + uint32_t(l);
+                child = node.child[l];
+                count = node.count[l];
+                t0 = en[l];
+                t1 = ex[l];
+                count_.step(binary_of[at], t0, t1, t_e);
+                continue;
+            }
+        } else {
+            for (uint32_t i = 0; i < count; ++i) {
+                const uint32_t p = refs[child + i];
+                count_.test(p);
+                TriangleHit th;
+                const Triangle& tri = leaf_tris[child + i];
+                if (intersect_triangle(sray, tri, tmin, hit.t, th, int32_t(p) < hit.prim) &&
+                    leaf_accepts(tri.bounds(), org, dir, t0, std::min(t1, hit.reach), th.t, t_e,
+                                 pad)) {
+                    count_.hit(th.t);
+                    hit.take(th.t, p, th.u, th.v, t_e);
+                } else {
+                    count_.miss();
+                }
+            }
+        }
+        // The next entry the ray can still reach.
+        for (;;) {
+            if (top == 0) return;
+            const WideStackEntry& e = stack[--top];
+            if (!(hit.reach < e.tmin)) {
+                child = e.child;
+                count = e.count;
+                t0 = e.tmin;
+                t1 = e.tmax;
+                count_.step(binary_of[e.lane], t0, t1, t_e);
+                break;
+            }
+        }
+    }
+}
+
+// Rays [begin, end) one by one, in and out of the tree's scaled space as
+// bvh_trace_rays does.
+template <class Counters>
+void bvh_wide_trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                         size_t begin, size_t end) {
+    const double scale = view.scale, inv_scale = 1.0 / view.scale;
+    for (size_t i = begin; i < end; ++i) {
+        const float* o = rays.origins + 3 * i;
+        const float* d = rays.directions + 3 * i;
+        Closest c;
+        Counters count;
+        const float tmin = rays.tmin[i * rays.tmin_stride];
+        const float tmax = rays.tmax[i * rays.tmax_stride];
+        if (scale == 1.0) {
+            bvh_wide_trace_one(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax,
+                               c, count);
+        } else {
+            const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+            bvh_wide_trace_one(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale),
+                               float(tmax * scale), c, count);
+            c.t = float(c.t * inv_scale);
+            if (!(c.t < tmax)) c.prim = -1;
+        }
+        const bool is_hit = c.prim >= 0;
+        hits.t[i] = is_hit ? c.t : kInf;
+        hits.prim[i] = c.prim;
+        hits.u[i] = is_hit ? c.u : 0.0f;
+        hits.v[i] = is_hit ? c.v : 0.0f;
+        count.store(hits, i);
+    }
+}
+
+}  // namespace
+}  // namespace bsp::BSPLAB_ISA_NS
