@@ -200,10 +200,10 @@ struct Tree {
     // The binary node of each wide lane (4 per wide node): the counters and
     // trace_path report the walk in the binary tree's numbering.
     std::vector<uint32_t> bvh_wide_binary;
-    // Structure::Bvh: the triangles in leaf order (bvh_leaf_tris[i] is
-    // triangles[refs[i]]), so that a leaf's triangles are side by side and
-    // the wide walk reads them without the refs[] indirection.
-    std::vector<Triangle> bvh_leaf_tris;
+    // Structure::Bvh: the triangles in leaf order with their indices
+    // (bvh_leaf_tris[i] = {triangles[refs[i]], refs[i]}), so that a leaf's
+    // triangles are side by side and the wide walk reads no refs[].
+    std::vector<BvhLeafTriangle> bvh_leaf_tris;
     // Culling boxes: per triangle (LeafBoxes::Triangle) or per reference slot
     // of refs[] (LeafBoxes::Clipped, where leaves never inline a triangle).
     std::vector<Box> boxes;

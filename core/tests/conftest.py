@@ -79,7 +79,8 @@ def is_slow(item) -> bool:
             name in SANITIZER_SLOW_TESTS
             or any(s in params for s in SANITIZER_SLOW_ON_PARAMS.get(name, ()))):
         return True
-    return ("shared:" in params or "shared_scene" in name or name in SLOW_TESTS
+    return ("shared:" in params or "shared_scene" in name or "shared_mesh" in name
+            or name in SLOW_TESTS
             or item.path.name in SLOW_FILES
             or any(s in params for s in SLOW_ON_SCENES.get(name, ())))
 

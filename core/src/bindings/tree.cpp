@@ -60,7 +60,7 @@ nb::dict stats(const Tree& tree) {
     d["wide_nodes"] = uint64_t(tree.bvh_wide.size());
     d["wide_bytes"] = uint64_t(tree.bvh_wide.size() * sizeof(BvhWideNode) +
                                tree.bvh_wide_binary.size() * sizeof(uint32_t) +
-                               tree.bvh_leaf_tris.size() * sizeof(Triangle));
+                               tree.bvh_leaf_tris.size() * sizeof(BvhLeafTriangle));
     d["plane_bytes"] = uint64_t(tree.planes.size() * sizeof(Plane));
     static const char* kinds[] = {"none", "triangle", "clipped"};
     d["leaf_boxes"] = kinds[int(tree.options.leaf_boxes)];

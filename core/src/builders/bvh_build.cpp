@@ -361,9 +361,9 @@ Tree build_bvh_tree(std::vector<Triangle> triangles, const BuildOptions& options
     budget.charge(tree.bvh_nodes.size() / 6 * (sizeof(BvhWideNode) + 4 * sizeof(uint32_t)), -1,
                   "the wide BVH");
     tree.bvh_wide = collapse_bvh(tree.bvh_nodes, &tree.bvh_wide_binary);
-    budget.charge(tree.refs.size() * sizeof(Triangle), -1, "the triangles in leaf order");
+    budget.charge(tree.refs.size() * sizeof(BvhLeafTriangle), -1, "the triangles in leaf order");
     tree.bvh_leaf_tris.reserve(tree.refs.size());
-    for (const uint32_t p : tree.refs) tree.bvh_leaf_tris.push_back(tree.triangles[p]);
+    for (const uint32_t p : tree.refs) tree.bvh_leaf_tris.push_back({tree.triangles[p], p});
     st.nodes = tree.bvh_nodes.size();
     st.leaves = r.leaves;
     st.interior_nodes = st.nodes - st.leaves;
@@ -394,7 +394,7 @@ Tree build_bvh_tree(std::vector<Triangle> triangles, const BuildOptions& options
     st.box_bytes = 0;
     st.bytes = tree.bvh_nodes.size() * sizeof(BvhNode) +
                tree.bvh_wide.size() * sizeof(BvhWideNode) + tree.refs.size() * sizeof(uint32_t) +
-               tree.bvh_leaf_tris.size() * sizeof(Triangle) +
+               tree.bvh_leaf_tris.size() * sizeof(BvhLeafTriangle) +
                tree.bvh_wide_binary.size() * sizeof(uint32_t) +
                tree.triangles.size() * sizeof(Triangle);
     const double total = double(st.bytes);

@@ -106,7 +106,7 @@ def test_the_tree_is_what_its_stats_say():
     # The binary nodes, refs and triangles, plus the 4-wide layout the walk
     # traces: 128-byte nodes, each lane's binary node (for the counters) and
     # the triangles in leaf order.
-    assert s["wide_bytes"] == (128 + 16) * s["wide_nodes"] + 36 * s["references"]
+    assert s["wide_bytes"] == (128 + 16) * s["wide_nodes"] + 40 * s["references"]
     assert s["bytes"] == 32 * s["nodes"] + 4 * s["references"] + 36 * s["triangles"] + s["wide_bytes"]
     assert 0 < s["wide_nodes"] < s["interior_nodes"] / 2
     assert s["kd_nodes"] == s["general_nodes"] == 0 and s["interior_nodes"] == interior.sum()

@@ -122,8 +122,7 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                           walk.test_t);
     const BvhQuadTest quad(ray);
     const float pad = tree.cull_pad + walk.slack;
-    const uint32_t* refs = tree.refs;
-    const Triangle* leaf_tris = tree.bvh_leaf_tris;
+    const BvhLeafTriangle* leaf_tris = tree.bvh_leaf_tris;
     const BvhWideNode* nodes = tree.bvh_wide;
     const uint32_t* binary_of = tree.bvh_wide_binary;
     WideStackEntry stack[kBvhWideStack];
@@ -171,10 +170,11 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
             }
         } else {
             for (uint32_t i = 0; i < count; ++i) {
-                const uint32_t p = refs[child + i];
+                const BvhLeafTriangle& leaf = leaf_tris[child + i];
+                const uint32_t p = leaf.prim;
                 count_.test(p);
                 TriangleHit th;
-                const Triangle& tri = leaf_tris[child + i];
+                const Triangle& tri = leaf.tri;
                 if (intersect_triangle(sray, tri, tmin, hit.t, th, int32_t(p) < hit.prim) &&
                     leaf_accepts(tri.bounds(), org, dir, t0, std::min(t1, hit.reach), th.t, t_e,
                                  pad)) {

@@ -38,7 +38,7 @@ struct TreeView {
     const BvhNode* bvh_nodes;
     // Structure::Bvh: its 4-wide collapse (the hits-only kernel's nodes).
     const BvhWideNode* bvh_wide;
-    const Triangle* bvh_leaf_tris;  // Structure::Bvh: the triangles in refs[] order
+    const BvhLeafTriangle* bvh_leaf_tris;  // Structure::Bvh: the triangles in refs[] order
     const uint32_t* bvh_wide_binary;  // Structure::Bvh: each wide lane's binary node
 };
 
