@@ -219,11 +219,12 @@ void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmi
     }
 }
 
-// Rays [begin, end) one by one (kernel_set.hpp), in and out of the tree's
-// scaled space as single_ray.hpp's trace_rays does.
-template <class Counters>
-void bvh_trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
-                    size_t begin, size_t end) {
+// Rays [begin, end) one by one through `trace_one` (a BVH walk: the binary
+// one below, the wide one of bvh_wide_single_ray.hpp), in and out of the
+// tree's scaled space as single_ray.hpp's trace_rays does.
+template <class Counters, class TraceOne>
+void trace_bvh_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                    size_t begin, size_t end, TraceOne trace_one) {
     const double scale = view.scale, inv_scale = 1.0 / view.scale;
     for (size_t i = begin; i < end; ++i) {
         const float* o = rays.origins + 3 * i;
@@ -233,12 +234,11 @@ void bvh_trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& 
         const float tmin = rays.tmin[i * rays.tmin_stride];
         const float tmax = rays.tmax[i * rays.tmax_stride];
         if (scale == 1.0) {
-            bvh_trace_one(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c,
-                          count);
+            trace_one(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c, count);
         } else {
             const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
-            bvh_trace_one(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale),
-                          float(tmax * scale), c, count);
+            trace_one(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale), float(tmax * scale),
+                      c, count);
             c.t = float(c.t * inv_scale);
             if (!(c.t < tmax)) c.prim = -1;
         }
@@ -249,6 +249,15 @@ void bvh_trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& 
         hits.v[i] = is_hit ? c.v : 0.0f;
         count.store(hits, i);
     }
+}
+
+// The binary walk's rays (kernel_set.hpp).
+template <class Counters>
+void bvh_trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
+                    size_t begin, size_t end) {
+    // A lambda, not a function pointer: a call the compiler always inlines.
+    trace_bvh_rays<Counters>(view, rays, hits, begin, end,
+                             [](auto&&... a) { bvh_trace_one(a...); });
 }
 
 }  // namespace

@@ -201,36 +201,12 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
     }
 }
 
-// Rays [begin, end) one by one, in and out of the tree's scaled space as
-// bvh_trace_rays does.
+// The wide walk's rays (kernel_set.hpp), through trace_bvh_rays.
 template <class Counters>
 void bvh_wide_trace_rays(const TreeView& view, const RayBatch& rays, const HitBatch& hits,
                          size_t begin, size_t end) {
-    const double scale = view.scale, inv_scale = 1.0 / view.scale;
-    for (size_t i = begin; i < end; ++i) {
-        const float* o = rays.origins + 3 * i;
-        const float* d = rays.directions + 3 * i;
-        Closest c;
-        Counters count;
-        const float tmin = rays.tmin[i * rays.tmin_stride];
-        const float tmax = rays.tmax[i * rays.tmax_stride];
-        if (scale == 1.0) {
-            bvh_wide_trace_one(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax,
-                               c, count);
-        } else {
-            const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
-            bvh_wide_trace_one(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale),
-                               float(tmax * scale), c, count);
-            c.t = float(c.t * inv_scale);
-            if (!(c.t < tmax)) c.prim = -1;
-        }
-        const bool is_hit = c.prim >= 0;
-        hits.t[i] = is_hit ? c.t : kInf;
-        hits.prim[i] = c.prim;
-        hits.u[i] = is_hit ? c.u : 0.0f;
-        hits.v[i] = is_hit ? c.v : 0.0f;
-        count.store(hits, i);
-    }
+    trace_bvh_rays<Counters>(view, rays, hits, begin, end,
+                             [](auto&&... a) { bvh_wide_trace_one(a...); });
 }
 
 }  // namespace
