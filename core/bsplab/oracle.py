@@ -144,8 +144,13 @@ def plane_distance(triangles: np.ndarray, prim: np.ndarray, origins: np.ndarray,
     return t, err
 
 
+def speed_of(directions) -> np.ndarray:
+    """|d| per ray, in double."""
+    return np.linalg.norm(np.asarray(directions, np.float64), axis=1)
+
+
 def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, origins=None,
-            directions=None, edge_ulps: float = 8.0, tmin=None, tmax=None) -> dict:
+            directions=None, edge_ulps: float = 8.0, tmin=None, tmax=None, slack=None) -> dict:
     """How far two hit sets agree. A ray agrees when both miss, or both hit
     the same primitive, or both hit at the same distance within rel_tol
     (two primitives tie at a shared edge or coincide).
@@ -182,6 +187,8 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
             np.broadcast_to(np.asarray(tmin, np.float64), (len(pa),))[bad]
         hi = np.full(len(bad), np.inf) if tmax is None else \
             np.broadcast_to(np.asarray(tmax, np.float64), (len(pa),))[bad]
+        moved = np.zeros(len(bad)) if slack is None else \
+            np.broadcast_to(np.asarray(slack, np.float64), (len(pa),))[bad]
         for prims in (pa[bad], pb[bad]):
             with np.errstate(all="ignore"):
                 dist, scale = edge_distance(triangles, prims, o, d)
@@ -190,8 +197,9 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
             # for a ray almost in the plane that is a long way along it.
             along = err * np.linalg.norm(d.astype(np.float64), axis=1)
             with np.errstate(all="ignore"):
-                grazing |= np.abs(dist) <= edge_ulps * (np.finfo(np.float32).eps * scale + along)
-                tol = edge_ulps * (err + np.finfo(np.float32).eps * np.abs(t))
+                grazing |= np.abs(dist) <= edge_ulps * (np.finfo(np.float32).eps * scale + along) \
+                    + moved
+                tol = edge_ulps * (err + np.finfo(np.float32).eps * np.abs(t)) + moved / speed_of(d)
                 at_ends |= (np.abs(t - lo) <= tol) | (np.abs(t - hi) <= tol)
         at_ends &= ~grazing
         # A zero-area triangle (in exact arithmetic) is a segment or a point:
@@ -212,7 +220,8 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
                                np.abs(triangles[pb[bad][both]]).max(axis=(1, 2)))
             scale = np.maximum(scale, np.abs(o[both]).max(axis=1)).astype(np.float64)
             speed = np.linalg.norm(d[both].astype(np.float64), axis=1)
-            tie = np.abs(ta_ - tb_) * speed <= edge_ulps * np.finfo(np.float32).eps * scale
+            tie = np.abs(ta_ - tb_) * speed <= edge_ulps * np.finfo(np.float32).eps * scale \
+                + moved[both]
             near = np.zeros(len(bad), bool)
             near[np.flatnonzero(both)[tie]] = True
             grazing |= near & ~(at_ends | degenerate)
@@ -240,7 +249,7 @@ PARALLEL_COS = 1e-4
 
 
 def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
-          rel_tol: float = 1e-4, edge_ulps: float = 8.0) -> np.ndarray:
+          rel_tol: float = 1e-4, edge_ulps: float = 8.0, slack=None) -> np.ndarray:
     """The rays that went through the surface: Embree hits, and we miss or
     hit farther (beyond rel_tol of its t). Not counted: rays that graze an
     open (unshared) edge of the triangle Embree hit, where a single-precision
@@ -253,13 +262,29 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     that triangle is a segment, and whether the ray passes the surface there
     or through it is decided only by rounding). A shared edge is otherwise no
     excuse: one of its triangles must be hit whatever the rounding
-    (mesh_edges). Returns the indices."""
+    (mesh_edges). `slack` (per ray, world units) is how far our ray may be
+    displaced (compare's): a hit that much farther along the ray's crossing
+    of the plane is no leak. Returns the indices."""
     from . import mesh_edges
 
     pa, pb = ours["prim"], ref["prim"]
     ta, tb = ours["t"].astype(np.float64), ref["t"].astype(np.float64)
+    moved = np.zeros(len(pa)) if slack is None else \
+        np.broadcast_to(np.asarray(slack, np.float64), (len(pa),))
     with np.errstate(invalid="ignore"):
-        farther = (pa < 0) | (ta > tb + rel_tol * np.maximum(np.abs(tb), 1e-30))
+        # The displacement along the ray, at the crossing of Embree's
+        # triangle's plane: at most slack / (|d| cos) - bounded below by
+        # PARALLEL_COS, beyond which the ray counts as in the plane anyway.
+        cos = np.full(len(pa), 1.0)
+        hit_ref = pb >= 0
+        if slack is not None and hit_ref.any():
+            t3 = np.asarray(triangles, np.float64)[pb[hit_ref]]
+            nrm = np.cross(t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0])
+            d64 = np.asarray(directions, np.float64)[hit_ref]
+            cos[hit_ref] = np.abs(np.einsum("ij,ij->i", nrm, d64)) / np.maximum(
+                np.linalg.norm(nrm, axis=1) * np.linalg.norm(d64, axis=1), 1e-300)
+        along = moved / (speed_of(directions) * np.maximum(cos, PARALLEL_COS))
+        farther = (pa < 0) | (ta > tb + rel_tol * np.maximum(np.abs(tb), 1e-30) + along)
     idx = np.flatnonzero((pb >= 0) & farther)
     if not len(idx):
         return idx

@@ -49,6 +49,7 @@ def pytest_report_header(config):
 SLOW_TESTS = {
     "test_agreement.py::test_build_is_deterministic_across_thread_counts",
     "test_bsp.py::test_more_directions_find_cheaper_trees",
+    "test_instanced.py::test_hits_agree_with_embree_on_the_flattened_scene",
 }
 SLOW_FILES = {"test_experiment.py"}
 SLOW_ON_SCENES = {

@@ -13,5 +13,6 @@ void bind_registry(nanobind::module_& m);  // registry.cpp: methods, options, Bu
 void bind_tree(nanobind::module_& m);      // tree.cpp: build() and the Tree
 void bind_trace(nanobind::module_& m);     // trace.cpp: intersect, trace_path, the CPU
 void bind_inspect(nanobind::module_& m);   // inspect.cpp: split polygons, node cells
+void bind_instanced(nanobind::module_& m); // instanced.cpp: two-level scenes over mesh trees
 
 }  // namespace bsp::bindings

@@ -10,4 +10,5 @@ NB_MODULE(_core, m) {
     bsp::bindings::bind_tree(m);
     bsp::bindings::bind_trace(m);
     bsp::bindings::bind_inspect(m);
+    bsp::bindings::bind_instanced(m);
 }

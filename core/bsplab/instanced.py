@@ -1,0 +1,186 @@
+"""Instanced scenes in two levels: one tree per unique mesh (any method of the
+registry, built in the mesh's object space and shared by all its instances)
+and a top level - a BVH over the instances' world boxes. See
+docs/instances.md."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _core, checks
+from .tree import COUNTERS, Tree, build
+
+# The instanced trace's counters beyond a tree's (COUNTERS, which here hold
+# the bottom trees' sums over the instances entered): the top level's node
+# visits and the instances whose tree the ray entered.
+TOP_COUNTERS = ("top_steps", "instance_visits")
+# The top level's options and their defaults (the core's TopLevelSettings):
+# centroid bins per axis, the cost of a top node visit and of an instance
+# (a whole bottom trace: several box steps, hence more than a triangle's).
+# The transform's rounding in the oracle's tolerance (transform_slack): half
+# an ulp of the object-space origin and direction each, carried back by the
+# matrix - bounded with room to spare.
+TRANSFORM_ULPS = 4.0
+TOP_OPTIONS = {"top_bins": 16, "top_traversal_cost": 1.0, "top_intersect_cost": 4.0}
+
+
+def _matrices(value, n: int) -> np.ndarray:
+    """(n, 3, 4) float64 world-from-object matrices; (n, 4, 4) ones must end
+    in the row 0 0 0 1 (affine)."""
+    try:
+        m = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError("matrices must be an array of shape (M, 3, 4) or (M, 4, 4)") from None
+    if m.ndim != 3 or m.shape[1:] not in ((3, 4), (4, 4)):
+        raise ValueError(f"matrices must have shape (M, 3, 4) or (M, 4, 4), got {m.shape}")
+    if len(m) != n:
+        raise ValueError(f"matrices has {len(m)} rows but mesh_index {n}: one matrix per instance")
+    if m.shape[1] == 4:
+        last = m[:, 3, :]
+        bad = np.flatnonzero(~np.all(last == (0.0, 0.0, 0.0, 1.0), axis=1))
+        if len(bad):
+            raise ValueError(f"instance {bad[0]}: its matrix's last row is {last[bad[0]].tolist()}, "
+                             "not 0 0 0 1: only affine matrices place a mesh")
+        m = m[:, :3, :]
+    bad = np.flatnonzero(~np.isfinite(m).reshape(len(m), -1).all(axis=1))
+    if len(bad):
+        raise ValueError(f"instance {bad[0]}: its matrix has a non-finite entry (NaN or inf)")
+    return np.ascontiguousarray(m)
+
+
+class InstancedTree:
+    """Instances of shared mesh trees under a top-level BVH."""
+
+    def __init__(self, scene, meshes: list[Tree], mesh_index: np.ndarray, matrices: np.ndarray,
+                 method: str, options: dict, top_options: dict):
+        self._scene = scene
+        self.meshes = list(meshes)  # keeps the bottom trees alive: the scene points at them
+        self.mesh_index = mesh_index
+        self.matrices = matrices
+        self.method = method
+        self.options = dict(options)
+        self.top_options = dict(top_options)
+        sizes = np.array([len(t.triangles) for t in self.meshes], np.int64)
+        # Where each instance's triangles start in the flattened scene.
+        self.flat_offsets = np.concatenate([[0], np.cumsum(sizes[mesh_index])[:-1]]).astype(np.int64) \
+            if len(mesh_index) else np.zeros(0, np.int64)
+
+    @property
+    def stats(self) -> dict:
+        s = self._scene.stats()
+        bottom = [t.stats for t in self.meshes]
+        s["method"] = self.method
+        s["bottom_bytes"] = int(sum(b["bytes"] for b in bottom))
+        s["bottom_nodes"] = int(sum(b["nodes"] for b in bottom))
+        s["bottom_build_seconds"] = float(sum(b["build_seconds"] for b in bottom))
+        s["mesh_triangles"] = int(sum(b["triangles"] for b in bottom))
+        s["bytes"] = s["bottom_bytes"] + s["top_bytes"]
+        s["top_bytes_per_instance"] = s["top_bytes"] / max(1, s["instances"])
+        return s
+
+    def instance_of(self, flat_prim) -> np.ndarray:
+        """The instance of each index into flatten()'s triangles (-1 for -1)."""
+        p = np.asarray(flat_prim, np.int64)
+        inst = np.searchsorted(self.flat_offsets, p, side="right") - 1
+        return np.where(p >= 0, inst, -1)
+
+    def transform_slack(self, origins, directions, t, instances) -> np.ndarray:
+        """How far (world units) a ray traced in instance i's object space
+        may be from the world ray at distance t: the origin and direction
+        rounded to float there (half an ulp each, relative to A^-1 (o - b)
+        and A^-1 d), carried back by A, so at most
+        TRANSFORM_ULPS eps cond(A) (|o| + |b| + t |d|). 0 where instance < 0.
+        The oracle's `slack` for an instanced trace (docs/instances.md)."""
+        o = np.asarray(origins, np.float64)
+        d = np.asarray(directions, np.float64)
+        inst = np.asarray(instances, np.int64)
+        tt = np.where(np.isfinite(t), np.abs(np.asarray(t, np.float64)), 0.0)
+        out = np.zeros(len(o))
+        ok = inst >= 0
+        if ok.any():
+            m = self.matrices[inst[ok]]
+            cond = np.linalg.cond(m[:, :, :3])
+            out[ok] = TRANSFORM_ULPS * np.finfo(np.float32).eps * cond * (
+                np.linalg.norm(o[ok], axis=1) + np.linalg.norm(m[:, :, 3], axis=1)
+                + tt[ok] * np.linalg.norm(d[ok], axis=1))
+        return out
+
+    def flatten(self) -> np.ndarray:
+        """The (T, 3, 3) float32 world triangles of every instance in order
+        (each mesh's triangles in input order): the scene a flat tree, and
+        Embree, would trace. Transformed in double, rounded once."""
+        parts = []
+        for mesh, m in zip(self.mesh_index, self.matrices):
+            tris = self.meshes[mesh].triangles.astype(np.float64)
+            parts.append((tris @ m[:, :3].T + m[:, 3]).astype(np.float32))
+        return np.concatenate(parts) if parts else np.zeros((0, 3, 3), np.float32)
+
+    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0,
+                  counters=True, progress=None) -> dict:
+        """Closest hits: as Tree.intersect's ("prim" the triangle's index in
+        its mesh), plus "instance" (-1 on a miss) and "flat_prim" (the index
+        in flatten()'s triangles). With counters, COUNTERS hold the bottom
+        trees' sums over the instances entered, TOP_COUNTERS the top level's."""
+        if not isinstance(counters, (bool, np.bool_)):
+            raise TypeError(f"counters must be True or False, got {counters!r}")
+        o, d = checks.rays(origins, directions)
+        n = len(o)
+        lo, hi = checks.ray_ranges(tmin, tmax, n)
+        progress = checks.progress(progress)
+        out = {"t": np.empty(n, np.float32), "prim": np.empty(n, np.int32),
+               "u": np.empty(n, np.float32), "v": np.empty(n, np.float32),
+               "instance": np.empty(n, np.int32)}
+        names = COUNTERS + TOP_COUNTERS
+        if counters:
+            out.update({name: np.empty(n, np.uint32) for name in names})
+        _core.intersect_instanced(self._scene, o, d, lo, hi, out["t"], out["prim"], out["u"],
+                                  out["v"], out["instance"], *(out.get(k) for k in names),
+                                  checks.threads(threads), progress)
+        hit = out["instance"] >= 0
+        out["flat_prim"] = np.where(hit, self.flat_offsets[np.maximum(out["instance"], 0)]
+                                    + out["prim"], -1).astype(np.int64)
+        return out
+
+    def __repr__(self) -> str:
+        s = self._scene.stats()
+        return (f"<bsplab.InstancedTree {self.method}: {s['meshes']} meshes, "
+                f"{s['instances']} instances, {s['instanced_triangles']} instanced triangles>")
+
+
+def build_instanced(meshes, mesh_index, matrices, method: str = "kd", *, top: str = "bvh",
+                    threads=0, progress=None, **options) -> InstancedTree:
+    """An instanced scene: `meshes` a list of (N, 3, 3) triangle arrays (or
+    (vertices, indices) pairs, or already built Trees, which are shared, not
+    rebuilt), `mesh_index` (M,) the mesh of each instance, `matrices` (M, 3, 4)
+    or (M, 4, 4) affine world-from-object matrices. Each mesh's tree is built
+    by `method` with `options` (the registry's); the top level is a BVH
+    (`top="bvh"`, its options TOP_OPTIONS). A singular matrix is an error."""
+    checks.choice(top, "top", ("bvh",))
+    if not isinstance(meshes, (list, tuple)) or not meshes:
+        raise ValueError("meshes must be a non-empty list of triangle arrays or Trees")
+    idx = np.asarray(mesh_index)
+    if idx.ndim != 1 or not (np.issubdtype(idx.dtype, np.integer) or len(idx) == 0):
+        raise TypeError(f"mesh_index must be a 1-d array of integers, got {idx.dtype} {idx.shape}")
+    if len(idx) and (idx.min() < 0 or idx.max() >= len(meshes)):
+        i = int(np.flatnonzero((idx < 0) | (idx >= len(meshes)))[0])
+        raise ValueError(f"instance {i}: mesh index {int(idx[i])} is out of range "
+                         f"({len(meshes)} meshes)")
+    idx = np.ascontiguousarray(idx, dtype=np.uint32)
+    m = _matrices(matrices, len(idx))
+    top_opts = dict(TOP_OPTIONS)
+    for k in list(options):
+        if k in TOP_OPTIONS:
+            top_opts[k] = options.pop(k)
+    top_opts["top_bins"] = checks.number(top_opts["top_bins"], "top_bins", low=2, high=256,
+                                         integer=True)
+    for k in ("top_traversal_cost", "top_intersect_cost"):
+        top_opts[k] = checks.number(top_opts[k], k, low=0, low_open=True)
+    progress = checks.progress(progress)
+    trees = [t if isinstance(t, Tree) else build(t, method, progress=progress, threads=threads,
+                                                 **options)
+             for t in meshes]
+    scene = _core.build_instanced([t._tree for t in trees], idx, m, int(top_opts["top_bins"]),
+                                  float(top_opts["top_traversal_cost"]),
+                                  float(top_opts["top_intersect_cost"]), checks.threads(threads),
+                                  progress)
+    return InstancedTree(scene, trees, idx, m, method, options, top_opts)

@@ -1,0 +1,114 @@
+"""Generated instanced scenes (meshes, mesh_index, matrices) for
+`bsplab.build_instanced`: the cases its correctness tests need - rotations,
+non-uniform and mirrored scales, shear, instances that touch, overlap and
+share faces, nested instancing, tiny and huge scales in one scene - and a
+scatter of many instances. Deterministic for a seed."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import scenes
+
+
+def cube() -> np.ndarray:
+    """The closed unit cube [0, 1]^3: 12 triangles, every edge shared."""
+    c = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float32)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    tris = []
+    for a, b, cc, d in quads:
+        tris += [(a, b, cc), (a, cc, d)]
+    return c[np.array(tris)]
+
+
+def rotation(rng: np.random.Generator) -> np.ndarray:
+    """A uniformly random rotation matrix (3, 3)."""
+    q = rng.normal(size=4)
+    a, b, c, d = q / np.linalg.norm(q)
+    return np.array([[a*a + b*b - c*c - d*d, 2*(b*c - a*d), 2*(b*d + a*c)],
+                     [2*(b*c + a*d), a*a - b*b + c*c - d*d, 2*(c*d - a*b)],
+                     [2*(b*d - a*c), 2*(c*d + a*b), a*a - b*b - c*c + d*d]])
+
+
+def affine(a: np.ndarray, t) -> np.ndarray:
+    return np.hstack([np.asarray(a, np.float64), np.asarray(t, np.float64).reshape(3, 1)])
+
+
+def _compose(outer: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """outer o inner for 3 x 4 affine matrices (nested instancing)."""
+    return affine(outer[:, :3] @ inner[:, :3], outer[:, :3] @ inner[:, 3] + outer[:, 3])
+
+
+def transformed(seed: int = 0, count: int = 60):
+    """Two meshes (the fan, the cube) under random rotations, non-uniform
+    scales (1:4), mirrors (every third) and shears (every fifth), in a box
+    where many overlap."""
+    rng = np.random.default_rng(seed)
+    meshes = [scenes.generate("fan"), cube()]
+    mats, idx = [], []
+    for i in range(count):
+        a = rotation(rng) @ np.diag(rng.uniform(0.5, 2.0, 3))
+        if i % 3 == 0:
+            a = a @ np.diag([-1.0, 1.0, 1.0])
+        if i % 5 == 0:
+            a = a @ np.array([[1.0, rng.uniform(-0.7, 0.7), 0], [0, 1, 0], [0, 0, 1]])
+        mats.append(affine(a, rng.uniform(-2, 2, 3)))
+        idx.append(i % 2)
+    return meshes, np.array(idx), np.array(mats)
+
+
+def touching(n: int = 4):
+    """An n x n x n stack of unit cubes, each its own instance, face to face:
+    neighbouring instances share whole faces (rays along and through the
+    shared faces, edges and corners), plus a second copy of the middle row
+    overlapping it by half a cube."""
+    meshes = [cube()]
+    mats = [affine(np.eye(3), (x, y, z)) for x in range(n) for y in range(n) for z in range(n)]
+    mats += [affine(np.eye(3), (x + 0.5, n // 2, n // 2)) for x in range(n)]
+    return meshes, np.zeros(len(mats), np.int64), np.array(mats)
+
+
+def nested(seed: int = 0):
+    """Instances of instances: a group of three cubes, the group placed by
+    four rotated and scaled matrices, each placement by two more (24
+    instances, each matrix the product of three)."""
+    rng = np.random.default_rng(seed)
+    inner = [affine(np.eye(3) * 0.5, (i, 0, 0)) for i in range(3)]
+    middle = [affine(rotation(rng) * rng.uniform(0.5, 1.5), rng.uniform(-2, 2, 3)) for _ in range(4)]
+    outer = [affine(rotation(rng) * np.diag([1.0, 1.0, -1.0]), (0, 0, 0)),
+             affine(np.eye(3) * 2.0, (5, 0, 0))]
+    mats = [_compose(o, _compose(m, i)) for o in outer for m in middle for i in inner]
+    return [cube()], np.zeros(len(mats), np.int64), np.array(mats)
+
+
+def scales():
+    """One mesh (the cube) at 1e-4, at 1 and at 1e4 in the same scene, the
+    tiny ones beside the big one's faces and far from the origin."""
+    mats = [affine(np.eye(3) * 1e4, (-5e3, -5e3, -5e3))]
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        mats.append(affine(rotation(rng) * 1e-4, rng.uniform(-1, 1, 3) * 1e-3 + (5e3 + 1e-3, 0, 0)))
+        mats.append(affine(rotation(rng), rng.uniform(-3, 3, 3)))
+    return [cube()], np.zeros(len(mats), np.int64), np.array(mats)
+
+
+def scatter(meshes: list, count: int, extent: float, seed: int = 0):
+    """`count` instances of `meshes` with random rotations about z, scales
+    0.5-1.5 and positions on a square of side `extent` (a forest)."""
+    rng = np.random.default_rng(seed)
+    mats = []
+    for _ in range(count):
+        a = rng.uniform(0, 2 * np.pi)
+        rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        p = np.append(rng.uniform(-extent / 2, extent / 2, 2), 0.0)
+        mats.append(affine(rz * rng.uniform(0.5, 1.5), p))
+    return list(meshes), rng.integers(0, len(meshes), count), np.array(mats)
+
+
+# The correctness scenes, by name: () -> (meshes, mesh_index, matrices).
+TEST_SCENES = {
+    "transformed": transformed,
+    "touching": touching,
+    "nested": nested,
+    "scales": scales,
+}

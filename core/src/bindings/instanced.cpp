@@ -1,0 +1,113 @@
+// Instanced scenes: the top level over instances of shared mesh trees
+// (instanced.hpp), built and traced. The Python InstancedTree keeps the mesh
+// trees alive; the scene only points at them.
+#include <nanobind/nanobind.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/vector.h>
+
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "bindings/arrays.hpp"
+#include "bindings/bindings.hpp"
+#include "instanced.hpp"
+
+namespace bsp::bindings {
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace {
+
+using MatrixArray = nb::ndarray<const double, nb::shape<-1, 3, 4>, nb::c_contig, nb::device::cpu>;
+using IndexArray = nb::ndarray<const uint32_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using Counter = std::optional<Out<uint32_t>>;
+
+InstancedScene build(const std::vector<const Tree*>& meshes, IndexArray mesh_index,
+                     MatrixArray matrices, int bins, float traversal_cost, float intersect_cost,
+                     int threads, Progress* progress) {
+    const size_t n = mesh_index.shape(0);
+    if (matrices.shape(0) != n)
+        throw std::invalid_argument("build_instanced: one matrix per instance");
+    std::vector<uint32_t> index(mesh_index.data(), mesh_index.data() + n);
+    std::vector<double> m(matrices.data(), matrices.data() + 12 * n);
+    TopLevelSettings s;
+    s.bins = bins;
+    s.traversal_cost = traversal_cost;
+    s.intersect_cost = intersect_cost;
+    s.threads = threads;
+    nb::gil_scoped_release release;
+    return build_instanced(meshes, index, m, s, progress);
+}
+
+void intersect(const InstancedScene& scene, Vec3Array origins, Vec3Array directions,
+               FloatIn tmin, FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u,
+               Out<float> v, Out<int32_t> instance, Counter steps, Counter general_steps,
+               Counter tests, Counter culled, Counter box_tests, Counter top_steps,
+               Counter instance_visits, int threads, Progress* progress) {
+    const size_t n = origins.shape(0);
+    auto check = [n](size_t m, const char* what) {
+        if (m != n) throw std::invalid_argument(std::string(what) + " has the wrong length");
+    };
+    auto counter = [&](Counter& c, const char* what) -> uint32_t* {
+        if (!c) return nullptr;
+        check(c->shape(0), what);
+        return c->data();
+    };
+    check(directions.shape(0), "directions");
+    check(t.shape(0), "t");
+    check(prim.shape(0), "prim");
+    check(u.shape(0), "u");
+    check(v.shape(0), "v");
+    check(instance.shape(0), "instance");
+    if (tmin.shape(0) != 1) check(tmin.shape(0), "tmin");
+    if (tmax.shape(0) != 1) check(tmax.shape(0), "tmax");
+    RayBatch rays;
+    rays.origins = origins.data();
+    rays.directions = directions.data();
+    rays.tmin = tmin.data();
+    rays.tmax = tmax.data();
+    rays.tmin_stride = tmin.shape(0) == 1 ? 0 : 1;
+    rays.tmax_stride = tmax.shape(0) == 1 ? 0 : 1;
+    rays.count = n;
+    HitBatch hits{t.data(), prim.data(), u.data(), v.data(),
+                  counter(steps, "steps"), counter(general_steps, "general_steps"),
+                  counter(tests, "tests"), counter(culled, "culled"),
+                  counter(box_tests, "box_tests")};
+    InstanceHits extra{instance.data(), counter(top_steps, "top_steps"),
+                       counter(instance_visits, "instance_visits")};
+    nb::gil_scoped_release release;
+    intersect_instanced(scene, rays, hits, extra, threads, progress);
+}
+
+nb::dict stats(const InstancedScene& scene) {
+    const InstancedStats& s = scene.stats;
+    nb::dict d;
+    d["meshes"] = s.meshes;
+    d["instances"] = s.instances;
+    d["top_nodes"] = s.top_nodes;
+    d["top_leaves"] = s.top_leaves;
+    d["top_bytes"] = s.top_bytes;
+    d["top_depth"] = s.top_depth;
+    d["top_sah_cost"] = s.top_sah_cost;
+    d["top_build_seconds"] = s.top_build_seconds;
+    d["instanced_triangles"] = s.instanced_triangles;
+    return d;
+}
+
+}  // namespace
+
+void bind_instanced(nb::module_& m) {
+    nb::class_<InstancedScene>(m, "InstancedScene").def("stats", &stats);
+    m.def("build_instanced", &build, "meshes"_a, "mesh_index"_a, "matrices"_a, "bins"_a,
+          "traversal_cost"_a, "intersect_cost"_a, "threads"_a, "progress"_a.none(),
+          "The top level over instances of the mesh trees (the caller keeps them alive).");
+    m.def("intersect_instanced", &intersect, "scene"_a, "origins"_a, "directions"_a, "tmin"_a,
+          "tmax"_a, "t"_a, "prim"_a, "u"_a, "v"_a, "instance"_a, "steps"_a.none(),
+          "general_steps"_a.none(), "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(),
+          "top_steps"_a.none(), "instance_visits"_a.none(), "threads"_a, "progress"_a.none());
+}
+
+}  // namespace bsp::bindings

@@ -1,0 +1,90 @@
+// An instanced scene in two levels: a tree per unique mesh, built in the
+// mesh's object space by any method of the registry and shared by all its
+// instances, and a top level - a BVH over the instances' world boxes
+// (builders/bvh_build.hpp's build_bvh, the same binned SAH as a mesh's BVH).
+//
+// An instance is a mesh index and an affine 3 x 4 matrix, world from object
+// (rotation, non-uniform scale, mirroring and shear allowed; a singular one
+// is refused). A ray is carried into object space by the inverse, computed
+// in double and rounded once to float, without renormalising the direction:
+// a point o + t d in the world is o' + t d' in the object, so a bottom
+// tree's t is the world's t and the closest hit over instances is the
+// smallest t. The only difference from tracing the flattened scene is that
+// rounding (docs/instances.md, and the oracle's rule for it).
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bvh_node.hpp"
+#include "geometry.hpp"
+#include "progress.hpp"
+#include "trace/traverse.hpp"
+#include "tree.hpp"
+
+namespace bsp {
+
+// What the trace reads of an instance: 104 bytes. The inverse stays in
+// double: a small mesh far from the origin has a translation that nearly
+// cancels the rotated ray origin, which a float matrix would round by a good
+// part of the mesh (the world matrix itself stays with the caller).
+struct Instance {
+    double object_from_world[12];  // row-major 3 x 4: x_object = A x_world + b
+    uint32_t mesh = 0;
+};
+
+struct InstancedStats {
+    uint64_t meshes = 0, instances = 0;
+    uint64_t top_nodes = 0, top_leaves = 0, top_bytes = 0;
+    int top_depth = 0;
+    double top_sah_cost = 0, top_build_seconds = 0;
+    uint64_t instanced_triangles = 0;  // what the flattened scene would hold
+};
+
+struct InstancedScene {
+    std::vector<const Tree*> meshes;  // not owned: the caller keeps the trees alive
+    std::vector<Instance> instances;
+    // The top level: binary BVH nodes (bvh_node.hpp), leaves indexing
+    // top_order, which holds instance indices. Empty when no instance has
+    // a triangle.
+    std::vector<BvhNode> top_nodes;
+    std::vector<uint32_t> top_order;
+    // The first index of instance i's triangles in the flattened scene
+    // (instances in order, each mesh's triangles in input order): the tie
+    // rule between instances (the smallest flattened index of equal t wins,
+    // as within a tree the smallest triangle index).
+    std::vector<uint64_t> flat_offset;
+    InstancedStats stats;
+};
+
+// The top level's options: its BVH's bins and costs (instance boxes are
+// few; a bottom trace costs many box steps, hence the default intersect cost).
+struct TopLevelSettings {
+    int bins = 16;
+    float traversal_cost = 1.0f;
+    float intersect_cost = 4.0f;
+    int threads = 0;
+};
+
+// Throws std::invalid_argument naming the instance for a mesh index out of
+// range, a non-finite or singular matrix.
+InstancedScene build_instanced(std::vector<const Tree*> meshes,
+                               const std::vector<uint32_t>& mesh_index,
+                               const std::vector<double>& matrices,  // instances x 12
+                               const TopLevelSettings& settings, Progress* progress);
+
+// The per-ray results of an instanced trace beyond the HitBatch's: the
+// instance hit (-1 on a miss), and - for the counting path - the top level's
+// node visits and the instances entered (the HitBatch's counters then hold
+// the bottom trees' steps, tests and box tests, summed over the instances).
+struct InstanceHits {
+    int32_t* instance = nullptr;
+    uint32_t* top_steps = nullptr;
+    uint32_t* instance_visits = nullptr;
+};
+
+// Closest hits: hits.prim is the triangle's index in its mesh.
+void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
+                         InstanceHits& extra, int threads, Progress* progress = nullptr);
+
+}  // namespace bsp

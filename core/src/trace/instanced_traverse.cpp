@@ -1,0 +1,175 @@
+// Closest hits in an instanced scene (instanced.hpp): the top level's BVH
+// walked nearest box first, in double precision (its boxes are padded, so
+// the walk only needs to be conservative, not exact); at each instance the
+// ray carried into object space and traced through the instance's mesh tree
+// by that tree's own kernel (the selected instruction set's, as intersect()
+// would), its segment cut at the closest hit so far.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "instanced.hpp"
+#include "parallel.hpp"
+#include "trace/cpu_dispatch.hpp"
+#include "trace/kernels/kernel_set.hpp"
+#include "trace/kernels/tree_view.hpp"
+
+namespace bsp {
+
+namespace {
+
+// The top level's stack: one entry per level (kBvhMaxDepth bounds the depth).
+constexpr int kTopStack = 64;
+
+// The kernel intersect() would take for a bottom tree, without culling.
+TraceRange bottom_kernel(const Tree& tree, bool counting) {
+    const KernelSet& k = selected_kernels();
+    return tree.structure == Structure::Bvh ? k.bvh_single_ray[counting]
+                                            : k.single_ray[counting][int(LeafBoxes::None)];
+}
+
+// The ray's range [t0, t1] in box b, within [t0, t1] on entry. NaN
+// crossings (an origin in a face plane, the ray parallel to it) are
+// ignored: fmax/fmin return the other operand.
+bool clip(const Box& b, const double o[3], const double inv[3], double& t0, double& t1) {
+    for (int k = 0; k < 3; ++k) {
+        const double a = (double(b.lo[k]) - o[k]) * inv[k], c = (double(b.hi[k]) - o[k]) * inv[k];
+        t0 = std::fmax(t0, std::fmin(a, c));
+        t1 = std::fmin(t1, std::fmax(a, c));
+    }
+    return t0 <= t1;
+}
+
+struct Bottom {
+    TraceRange trace;
+    TreeView view;
+};
+
+}  // namespace
+
+void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
+                         InstanceHits& extra, int threads, Progress* progress) {
+    const bool counting = hits.steps != nullptr;
+    if (counting != (extra.top_steps != nullptr) ||
+        (counting && (!hits.general_steps || !hits.tests || !hits.culled || !hits.box_tests ||
+                      !extra.instance_visits)))
+        throw std::invalid_argument("intersect_instanced: give all the counter arrays or none");
+    std::vector<Bottom> bottom;
+    bottom.reserve(scene.meshes.size());
+    for (const Tree* t : scene.meshes) bottom.push_back({bottom_kernel(*t, counting), make_tree_view(*t)});
+    const BvhNode* nodes = scene.top_nodes.data();
+    const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
+    constexpr size_t kChunk = 256;
+    parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
+        if (progress) progress->check();
+        for (size_t i = begin; i < end; ++i) {
+            const float* of = rays.origins + 3 * i;
+            const float* df = rays.directions + 3 * i;
+            const float tmin = rays.tmin[i * rays.tmin_stride];
+            const float tmax = rays.tmax[i * rays.tmax_stride];
+            const double o[3] = {of[0], of[1], of[2]}, d[3] = {df[0], df[1], df[2]};
+            const double inv[3] = {1.0 / d[0], 1.0 / d[1], 1.0 / d[2]};
+            float best_t = tmax, best_u = 0, best_v = 0;
+            int32_t best_prim = -1, best_instance = -1;
+            uint64_t best_flat = std::numeric_limits<uint64_t>::max();
+            uint32_t top_steps = 0, visits = 0, steps = 0, general = 0, tests = 0, culled = 0,
+                     box_tests = 0;
+            struct Entry {
+                uint32_t node;
+                double t0;
+            } stack[kTopStack];
+            int top = 0;
+            double t0 = tmin, t1 = tmax;
+            if (!scene.top_nodes.empty() && clip(nodes[0].box(), o, inv, t0, t1))
+                stack[top++] = {0, t0};
+            while (top > 0) {
+                const Entry e = stack[--top];
+                // A box entered beyond the closest hit holds nothing closer
+                // (equal t stays: the tie rule decides between instances).
+                if (e.t0 > double(best_t)) continue;
+                const BvhNode& n = nodes[e.node];
+                ++top_steps;
+                if (!n.is_leaf()) {
+                    const uint32_t l = n.left();
+                    double a0 = tmin, a1 = best_t, b0 = tmin, b1 = best_t;
+                    const bool ha = clip(nodes[l].box(), o, inv, a0, a1);
+                    const bool hb = clip(nodes[l + 1].box(), o, inv, b0, b1);
+                    // The nearer on top of the stack.
+                    if (ha && hb) {
+                        const bool a_first = a0 <= b0;
+                        stack[top++] = {a_first ? l + 1 : l, a_first ? b0 : a0};
+                        stack[top++] = {a_first ? l : l + 1, a_first ? a0 : b0};
+                    } else if (ha || hb) {
+                        stack[top++] = {ha ? l : l + 1, ha ? a0 : b0};
+                    }
+                    continue;
+                }
+                for (uint32_t k = 0; k < n.count(); ++k) {
+                    const uint32_t id = scene.top_order[n.first + k];
+                    const Instance& inst = scene.instances[id];
+                    const double* m = inst.object_from_world;
+                    float ob[3], db[3];
+                    for (int r = 0; r < 3; ++r) {
+                        ob[r] = float(m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2] +
+                                      m[4 * r + 3]);
+                        db[r] = float(m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2]);
+                    }
+                    if (db[0] == 0.0f && db[1] == 0.0f && db[2] == 0.0f) continue;  // underflow
+                    ++visits;
+                    // Beyond the closest hit by one ulp, so that a hit at the
+                    // same t comes back and the tie rule can take it.
+                    const float limit = best_prim < 0 ? tmax : std::nextafter(best_t, kInf);
+                    float t, u, v;
+                    int32_t prim;
+                    uint32_t c[5] = {0, 0, 0, 0, 0};
+                    RayBatch one;
+                    one.origins = ob;
+                    one.directions = db;
+                    one.tmin = &tmin;
+                    one.tmax = &limit;
+                    one.count = 1;
+                    HitBatch out{&t, &prim, &u, &v};
+                    if (counting) {
+                        out.steps = c;
+                        out.general_steps = c + 1;
+                        out.tests = c + 2;
+                        out.culled = c + 3;
+                        out.box_tests = c + 4;
+                    }
+                    const Bottom& b = bottom[inst.mesh];
+                    b.trace(b.view, one, out, 0, 1);
+                    steps += c[0], general += c[1], tests += c[2], culled += c[3];
+                    box_tests += c[4];
+                    if (prim < 0) continue;
+                    const uint64_t flat = scene.flat_offset[id] + uint64_t(prim);
+                    if (t < best_t || (t == best_t && flat < best_flat)) {
+                        best_t = t;
+                        best_u = u;
+                        best_v = v;
+                        best_prim = prim;
+                        best_instance = int32_t(id);
+                        best_flat = flat;
+                    }
+                }
+            }
+            hits.t[i] = best_prim >= 0 ? best_t : kInf;
+            hits.prim[i] = best_prim;
+            hits.u[i] = best_u;
+            hits.v[i] = best_v;
+            extra.instance[i] = best_instance;
+            if (counting) {
+                hits.steps[i] = steps;
+                hits.general_steps[i] = general;
+                hits.tests[i] = tests;
+                hits.culled[i] = culled;
+                hits.box_tests[i] = box_tests;
+                extra.top_steps[i] = top_steps;
+                extra.instance_visits[i] = visits;
+            }
+        }
+        if (progress) progress->add(units_per_ray * (end - begin));
+    });
+}
+
+}  // namespace bsp

@@ -1,0 +1,157 @@
+"""Instanced scenes in two levels (bsplab.build_instanced): every hit checked
+against Embree's on the flattened scene, on every ray family, on the
+instanced test scenes (rotations, non-uniform, mirrored and sheared scales,
+touching, overlapping and nested instances, 1e-4 and 1e4 in one scene);
+bit-identical to the mesh tree where the transform is exact; the bottom
+trees shared; bad instances refused with their number."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import bsplab
+from bsplab import instanced_scenes, oracle, ray_families
+
+RAYS = 1000
+
+
+@pytest.fixture(scope="module", params=sorted(instanced_scenes.TEST_SCENES))
+def scene(request):
+    return request.param, instanced_scenes.TEST_SCENES[request.param]()
+
+
+def _flat_hits(h):
+    return {"t": h["t"], "prim": h["flat_prim"].astype(np.int32)}
+
+
+@pytest.mark.parametrize("method", ["kd", "bvh", "bsp_wn+kd"])
+def test_hits_agree_with_embree_on_the_flattened_scene(scene, method):
+    name, (meshes, idx, mats) = scene
+    opts = {"k": 4} if method.startswith("bsp") else {}
+    it = bsplab.build_instanced(meshes, idx, mats, method, **opts)
+    flat = it.flatten()
+    embree = oracle.EmbreeTracer(flat)
+    unexplained = {}
+    for family in ray_families.FAMILIES:
+        o, d, tmax = ray_families.family(family, flat, RAYS, seed=7)
+        ours = it.intersect(o, d, tmax=tmax, threads=1, counters=False)
+        ref = embree.intersect(o, d, tmax=tmax)
+        # The only tolerance beyond the oracle's: the transform's rounding,
+        # of the instance we hit and of the one Embree hit.
+        slack = np.maximum(
+            it.transform_slack(o, d, ours["t"], ours["instance"]),
+            it.transform_slack(o, d, ref["t"], it.instance_of(ref["prim"])))
+        c = oracle.compare(_flat_hits(ours), ref, triangles=flat, origins=o, directions=d,
+                           tmax=tmax, slack=slack)
+        if len(c["unexplained"]):
+            unexplained[family] = c["unexplained"][:5].tolist()
+        leaked = oracle.leaks(_flat_hits(ours), ref, triangles=flat, origins=o, directions=d,
+                              tmax=tmax, slack=slack)
+        assert leaked.size == 0, (name, method, family, leaked[:5])
+    assert not unexplained, (name, method, unexplained)
+
+
+def test_counting_path_gives_the_same_hits_and_counts_both_levels(scene):
+    _, (meshes, idx, mats) = scene
+    it = bsplab.build_instanced(meshes, idx, mats, "kd")
+    flat = it.flatten()
+    o, d, _ = ray_families.family("random_inside", flat, 2000, seed=3)
+    fast = it.intersect(o, d, counters=False)
+    counted = it.intersect(o, d, counters=True, threads=2)
+    for k in ("t", "prim", "u", "v", "instance", "flat_prim"):
+        np.testing.assert_array_equal(fast[k], counted[k], err_msg=k)
+    hit = counted["instance"] >= 0
+    assert hit.any()
+    assert (counted["top_steps"][hit] >= 1).all()
+    assert (counted["instance_visits"][hit] >= 1).all()
+    assert (counted["tests"][hit] >= 1).all()
+    # A ray's instance visits are at most the instances there are.
+    assert counted["instance_visits"].max() <= len(idx)
+
+
+@pytest.mark.parametrize("method", ["kd", "bvh"])
+def test_an_identity_instance_traces_bit_for_bit_as_its_tree(method):
+    tris = bsplab.scenes.generate("room")
+    tree = bsplab.build(tris, method)
+    it = bsplab.build_instanced([tree], [0], np.hstack([np.eye(3), np.zeros((3, 1))])[None])
+    assert it.meshes[0] is tree  # a built tree is shared, not rebuilt
+    for family in ("outside_in", "through_edges", "edges_in_split_planes", "random_inside"):
+        o, d, tmax = ray_families.family(family, tris, 2000, seed=1)
+        a = tree.intersect(o, d, tmax=tmax, counters=False)
+        b = it.intersect(o, d, tmax=tmax, counters=False)
+        for k in ("t", "prim", "u", "v"):
+            np.testing.assert_array_equal(a[k], b[k], err_msg=f"{family} {k}")
+        assert ((b["instance"] == 0) == (a["prim"] >= 0)).all()
+
+
+def test_of_two_coincident_instances_the_first_is_hit():
+    cube = instanced_scenes.cube()
+    mats = np.array([instanced_scenes.affine(np.eye(3), (0, 0, 0))] * 3)
+    it = bsplab.build_instanced([cube], [0, 0, 0], mats, "kd")
+    o, d, _ = ray_families.family("outside_in", it.flatten(), 500, seed=2)
+    h = it.intersect(o, d)
+    hit = h["instance"] >= 0
+    assert hit.sum() > 100
+    assert (h["instance"][hit] == 0).all()  # the smallest flattened index of equal t
+
+
+def test_bottom_trees_are_shared_and_the_top_level_is_small():
+    meshes, idx, mats = instanced_scenes.scatter([instanced_scenes.cube(),
+                                                  bsplab.scenes.generate("fan")], 2000, 100.0)
+    it = bsplab.build_instanced(meshes, idx, mats, "kd")
+    s = it.stats
+    assert s["meshes"] == 2 and s["instances"] == 2000
+    assert s["bottom_bytes"] == sum(bsplab.build(m, "kd").stats["bytes"] for m in meshes)
+    assert s["instanced_triangles"] == sum(len(meshes[i]) for i in idx)
+    assert s["top_bytes_per_instance"] <= 200
+    # Moving instances rebuilds the top level only: the same trees, shared.
+    moved = mats.copy()
+    moved[:, :, 3] += 1.0
+    again = bsplab.build_instanced(it.meshes, idx, moved, "kd")
+    assert all(a is b for a, b in zip(again.meshes, it.meshes))
+    o = np.array([[0.3, 0.2, 50.0]], np.float32) + moved[:1, :, 3].astype(np.float32)
+    d = np.array([[0, 0, -1]], np.float32)
+    assert again.intersect(o, d)["t"][0] == pytest.approx(
+        it.intersect(o - 1.0, d)["t"][0], rel=1e-5)
+
+
+def test_threads_give_the_same_hits():
+    meshes, idx, mats = instanced_scenes.transformed()
+    it = bsplab.build_instanced(meshes, idx, mats, "bvh")
+    o, d, _ = ray_families.family("random_inside", it.flatten(), 3000, seed=4)
+    a = it.intersect(o, d, threads=1, counters=False)
+    b = it.intersect(o, d, threads=2, counters=False)
+    for k in ("t", "prim", "instance"):
+        np.testing.assert_array_equal(a[k], b[k])
+
+
+@pytest.mark.parametrize("matrix, message", [
+    (np.zeros((3, 4)), "instance 1: its matrix is singular"),
+    (np.array([[1, 0, 0, 0], [0, 1, 0, 0], [1, 1, 0, 0]], float), "instance 1: its matrix is singular"),
+    (np.array([[1, 0, 0, np.nan], [0, 1, 0, 0], [0, 0, 1, 0]]), "instance 1: its matrix has a non-finite"),
+    (np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]], float), "not 0 0 0 1"),
+])
+def test_bad_matrices_are_refused_by_instance(matrix, message):
+    cube = instanced_scenes.cube()
+    good = np.eye(4)[:matrix.shape[0]] if matrix.shape[0] == 4 else np.eye(4)[:3]
+    with pytest.raises(ValueError, match=message):
+        bsplab.build_instanced([cube], [0, 0], np.array([good, matrix]), "kd")
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"mesh_index": [0, 2]}, ValueError, "instance 1: mesh index 2 is out of range"),
+    ({"mesh_index": [0.5, 1]}, TypeError, "mesh_index must be a 1-d array of integers"),
+    ({"matrices": np.zeros((1, 3, 4))}, ValueError, "one matrix per instance"),
+    ({"matrices": np.zeros((2, 3, 3))}, ValueError, r"shape \(M, 3, 4\)"),
+    ({"meshes": []}, ValueError, "non-empty list"),
+    ({"top": "kd"}, ValueError, "top"),
+    ({"top_bins": 1}, ValueError, "top_bins"),
+])
+def test_bad_arguments_are_refused(kwargs, error, message):
+    cube = instanced_scenes.cube()
+    args = {"meshes": [cube, cube], "mesh_index": [0, 1],
+            "matrices": np.array([np.eye(4)[:3]] * 2), **kwargs}
+    with pytest.raises(error, match=message):
+        bsplab.build_instanced(args.pop("meshes"), args.pop("mesh_index"), args.pop("matrices"),
+                               "kd", **args)
