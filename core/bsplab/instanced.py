@@ -60,6 +60,7 @@ class InstancedTree:
         self.method = method
         self.options = dict(options)
         self.top_options = dict(top_options)
+        self._normal_matrices = None
         sizes = np.array([len(t.triangles) for t in self.meshes], np.int64)
         # Where each instance's triangles start in the flattened scene.
         self.flat_offsets = np.concatenate([[0], np.cumsum(sizes[mesh_index])[:-1]]).astype(np.int64) \
@@ -105,6 +106,30 @@ class InstancedTree:
                 + tt[ok] * np.linalg.norm(d[ok], axis=1))
         return out
 
+    def hit_normals(self, hits: dict) -> np.ndarray:
+        """(N, 3) float32 unit world normals of the hits (zeros on a miss):
+        the object-space geometric normal carried by the inverse transpose
+        of the instance's matrix (a mirroring matrix flips it, as it flips
+        the flattened triangle's winding)."""
+        inst, prim = hits["instance"], hits["prim"]
+        out = np.zeros((len(inst), 3), np.float32)
+        hit = np.flatnonzero(inst >= 0)
+        if not len(hit):
+            return out
+        if self._normal_matrices is None:
+            self._normal_matrices = np.linalg.inv(self.matrices[:, :, :3]).transpose(0, 2, 1)
+        n = np.zeros((len(hit), 3))
+        for mesh in np.unique(self.mesh_index[inst[hit]]):
+            rows = hit[self.mesh_index[inst[hit]] == mesh]
+            tri = self.meshes[mesh].triangles[prim[rows]].astype(np.float64)
+            n[np.searchsorted(hit, rows)] = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        w = np.einsum("nij,nj->ni", self._normal_matrices[inst[hit]], n)
+        # det < 0 (a mirror) turns the winding: the flattened triangle's
+        # normal is then the opposite of the carried one.
+        w *= np.sign(np.linalg.det(self.matrices[inst[hit], :, :3]))[:, None]
+        out[hit] = w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300)
+        return out
+
     def flatten(self) -> np.ndarray:
         """The (T, 3, 3) float32 world triangles of every instance in order
         (each mesh's triangles in input order): the scene a flat tree, and
@@ -115,14 +140,23 @@ class InstancedTree:
             parts.append((tris @ m[:, :3].T + m[:, 3]).astype(np.float32))
         return np.concatenate(parts) if parts else np.zeros((0, 3, 3), np.float32)
 
-    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0,
-                  counters=True, progress=None) -> dict:
+    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=False,
+                  counters=True, packets=False, progress=None) -> dict:
         """Closest hits: as Tree.intersect's ("prim" the triangle's index in
         its mesh), plus "instance" (-1 on a miss) and "flat_prim" (the index
         in flatten()'s triangles). With counters, COUNTERS hold the bottom
-        trees' sums over the instances entered, TOP_COUNTERS the top level's."""
-        if not isinstance(counters, (bool, np.bool_)):
-            raise TypeError(f"counters must be True or False, got {counters!r}")
+        trees' sums over the instances entered, TOP_COUNTERS the top level's.
+        `packets=True` gives the same hits, traced one ray at a time (as a
+        BVH's packets are); leaf culling (`cull=True`) is not offered in two
+        levels."""
+        for name, value in (("cull", cull), ("counters", counters), ("packets", packets)):
+            if not isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"{name} must be True or False, got {value!r}")
+        if cull:
+            raise ValueError("cull=True: leaf culling is not offered for instanced scenes "
+                             "(trace their flattened scene to cull)")
+        if packets and counters:
+            raise ValueError("packets=True traces hits only: pass counters=False")
         o, d = checks.rays(origins, directions)
         n = len(o)
         lo, hi = checks.ray_ranges(tmin, tmax, n)

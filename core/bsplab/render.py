@@ -45,8 +45,11 @@ def geometric_normals(triangles: np.ndarray, prim: np.ndarray) -> np.ndarray:
     return n
 
 
-def shade(mode: str, hits: dict, directions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """(M, 3) colours of rays for one of RENDER_MODES."""
+def shade(mode: str, hits: dict, directions: np.ndarray, triangles: np.ndarray,
+          normals=None) -> np.ndarray:
+    """(M, 3) colours of rays for one of RENDER_MODES. `normals`: the hits'
+    unit normals where the caller has them (an instanced scene's, carried to
+    the world); else those of triangles[prim]."""
     prim = hits["prim"]
     hit = prim >= 0
     rgb = np.broadcast_to(BACKGROUND, (len(prim), 3)).copy()
@@ -61,7 +64,7 @@ def shade(mode: str, hits: dict, directions: np.ndarray, triangles: np.ndarray) 
         lo, hi = float(t.min()), float(t.max())
         rgb[hit] = (1.0 - (t - lo) / max(hi - lo, 1e-30))[:, None] * 0.9 + 0.1
         return rgb
-    n = geometric_normals(triangles, prim)
+    n = geometric_normals(triangles, prim) if normals is None else normals(hits)
     if mode == "normal":
         rgb[hit] = n[hit] * 0.5 + 0.5
         return rgb
@@ -140,18 +143,20 @@ def counter_stats(hits: dict | None) -> dict:
     }
 
 
-def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "shaded", *,
+def render(tree, camera: Camera, width: int, height: int, mode: str = "shaded", *,
            threads: int = 0, cull: bool | None = None, counters: bool | None = None,
            packets: bool | None = None, progress=None) -> tuple[np.ndarray, dict]:
     """Renders an (H, W, 4) float32 RGBA image (row 0 = top) and its statistics.
+    `tree` is a bsplab.Tree or an InstancedTree (bsplab.build_instanced).
     `cull` (leaf culling) defaults to on for the heat_culled mode only.
     `counters` defaults to the heatmap modes only: shaded, normal and depth
     trace on the hits-only path (the same image) and leave the counter
     statistics None; counters=True counts them in the same single trace.
     `packets` defaults to on wherever it may (hits only, no culling): the
     pixels are traced tile by tile in ray packets, the same image."""
-    if not isinstance(tree, Tree):
-        raise TypeError(f"tree must be a bsplab.Tree, got {type(tree).__name__}")
+    from .instanced import InstancedTree
+    if not isinstance(tree, (Tree, InstancedTree)):
+        raise TypeError(f"tree must be a bsplab.Tree or InstancedTree, got {type(tree).__name__}")
     if not isinstance(camera, Camera):
         raise TypeError(f"camera must be a bsplab.Camera, got {type(camera).__name__}")
     width, height = check_size(width, height)
@@ -166,7 +171,10 @@ def render(tree: Tree, camera: Camera, width: int, height: int, mode: str = "sha
                                              cull=cull, counted=counted, packets=packets,
                                              progress=progress)
     image = np.ones((height * width, 4), np.float32)
-    image[:, :3] = shade(mode, hits, directions, tree.triangles)
+    if isinstance(tree, Tree):
+        image[:, :3] = shade(mode, hits, directions, tree.triangles)
+    else:  # an instanced scene: its hits' normals carried to the world
+        image[:, :3] = shade(mode, hits, directions, None, normals=tree.hit_normals)
     n = width * height
     stats = {
         "seconds": seconds,

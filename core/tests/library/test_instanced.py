@@ -12,6 +12,7 @@ import pytest
 
 import bsplab
 from bsplab import instanced_scenes, oracle, ray_families
+from bsplab.render import geometric_normals
 
 RAYS = 1000
 
@@ -155,3 +156,42 @@ def test_bad_arguments_are_refused(kwargs, error, message):
     with pytest.raises(error, match=message):
         bsplab.build_instanced(args.pop("meshes"), args.pop("mesh_index"), args.pop("matrices"),
                                "kd", **args)
+
+
+@pytest.mark.parametrize("mode", ["shaded", "normal", "depth", "heat_steps"])
+def test_render_matches_the_flattened_scene(mode):
+    meshes, idx, mats = instanced_scenes.transformed(count=20)
+    it = bsplab.build_instanced(meshes, idx, mats, "kd")
+    flat = bsplab.build(it.flatten(), "kd")
+    cam = bsplab.Camera.look_at((9, -7, 6), (0, 0, 0), fov_deg=45)
+    a, sa = bsplab.render(it, cam, 64, 48, mode)
+    b, sb = bsplab.render(flat, cam, 64, 48, mode)
+    assert sa["hits"] > 500 and abs(sa["hits"] - sb["hits"]) <= 3
+    if mode == "heat_steps":  # different trees: only the counting and the hits
+        assert sa["counters"] and sa["mean_steps"] > 0
+        return
+    close = np.isclose(a, b, atol=2e-3).all(axis=2)
+    assert close.mean() > 0.995, close.mean()
+
+
+def test_hit_normals_are_the_flattened_triangles_normals():
+    meshes, idx, mats = instanced_scenes.transformed(count=30)
+    it = bsplab.build_instanced(meshes, idx, mats, "bvh")
+    flat = it.flatten()
+    o, d, _ = ray_families.family("outside_in", flat, 3000, seed=5)
+    h = it.intersect(o, d, counters=False)
+    ok = h["flat_prim"] >= 0
+    n = it.hit_normals(h)[ok]
+    ref = geometric_normals(flat, h["flat_prim"].astype(np.int64))[ok]
+    assert (np.einsum("ij,ij->i", n, ref) > 0.999).all()
+
+
+def test_packets_and_culling_flags():
+    it = bsplab.build_instanced([instanced_scenes.cube()], [0], np.eye(4)[None, :3])
+    o = np.array([[0.5, 0.5, 5.0]], np.float32)
+    d = np.array([[0, 0, -1]], np.float32)
+    assert it.intersect(o, d, counters=False, packets=True)["t"][0] == 4.0
+    with pytest.raises(ValueError, match="culling"):
+        it.intersect(o, d, cull=True)
+    with pytest.raises(ValueError, match="hits only"):
+        it.intersect(o, d, packets=True)
