@@ -61,6 +61,7 @@ class InstancedTree:
         self.options = dict(options)
         self.top_options = dict(top_options)
         self._normal_matrices = None
+        self._top_arrays = None
         sizes = np.array([len(t.triangles) for t in self.meshes], np.int64)
         # Where each instance's triangles start in the flattened scene.
         self.flat_offsets = np.concatenate([[0], np.cumsum(sizes[mesh_index])[:-1]]).astype(np.int64) \
@@ -105,6 +106,127 @@ class InstancedTree:
                 np.linalg.norm(o[ok], axis=1) + np.linalg.norm(m[:, :, 3], axis=1)
                 + tt[ok] * np.linalg.norm(d[ok], axis=1))
         return out
+
+    def _top(self) -> dict:
+        if self._top_arrays is None:
+            self._top_arrays = self._scene.top_arrays()
+        return self._top_arrays
+
+    def top_boxes(self, max_depth: int | None = None) -> dict:
+        """The top level's node boxes in world units, root first, level by
+        level down to `max_depth` (None: all): "lo", "hi" (B, 3) float32,
+        per box "node", "depth", "leaf" (bool) and "instances" (a leaf's
+        instance indices - usually one; instances whose boxes the binning
+        cannot tell apart share a leaf - and an empty array for an interior
+        node)."""
+        a = self._top()
+        limit = None if max_depth is None else checks.number(max_depth, "max_depth", low=0,
+                                                             integer=True)
+        rows, depth = [], []
+        level = [0] if len(a["lo"]) else []
+        d = 0
+        while level and (limit is None or d <= limit):
+            rows += level
+            depth += [d] * len(level)
+            level = [c for n in level if not a["leaf"][n] for c in (a["first"][n], a["first"][n] + 1)]
+            d += 1
+        rows = np.array(rows, np.int64)
+        leaf = a["leaf"][rows].astype(bool) if len(rows) else np.zeros(0, bool)
+        insts = [a["order"][a["first"][n]:a["first"][n] + a["count"][n]].astype(np.int64)
+                 if a["leaf"][n] else np.zeros(0, np.int64) for n in rows]
+        return {"lo": a["lo"][rows], "hi": a["hi"][rows], "node": rows,
+                "depth": np.array(depth, np.int64), "leaf": leaf, "instances": insts}
+
+    def trace_path(self, origin, direction, tmin=0.0, tmax=np.inf) -> dict:
+        """One ray's walk through both levels, as intersect() traces it: the
+        same hit bit for bit ("t", "prim", "u", "v", "instance") and counts
+        ("top_steps", "instance_visits", and the bottom trees' "steps",
+        "tests", "box_tests", ...). "top": per top-level node visited, in
+        order, "node", "t_range" and "box_lo", "box_hi" (world units);
+        "instances": per instance entered, in order, {"instance", "mesh",
+        "origin", "direction" (the ray in object space), "path" (the mesh
+        tree's Tree.trace_path of it)}. The walk is the core's, replayed
+        here from its arrays (the same double-precision arithmetic)."""
+        import math
+
+        from .tree import _finite_vector
+        o32 = _finite_vector(origin, "origin")
+        d32 = _finite_vector(direction, "direction")
+        if not d32.any():
+            raise ValueError("direction must not be zero")
+        lo32, hi32 = (np.float32(x[0]) for x in checks.ray_ranges(tmin, tmax, 1))
+        a = self._top()
+        o = [float(x) for x in o32]
+        d = [float(x) for x in d32]
+        inv = [1.0 / x if x != 0.0 else math.copysign(math.inf, x) for x in d]
+
+        def clip(node, t0, t1):
+            for k in range(3):
+                p = (float(a["lo"][node, k]) - o[k]) * inv[k]
+                q = (float(a["hi"][node, k]) - o[k]) * inv[k]
+                t0 = float(np.fmax(t0, np.fmin(p, q)))
+                t1 = float(np.fmin(t1, np.fmax(p, q)))
+            return t0 <= t1, t0, t1
+
+        best = {"t": hi32, "prim": -1, "u": np.float32(0), "v": np.float32(0),
+                "instance": -1, "flat": None}
+        counts = dict.fromkeys(COUNTERS, 0)
+        top_rows, visits = [], []
+        stack = []
+        if len(a["lo"]):
+            ok, t0, t1 = clip(0, float(lo32), float(hi32))
+            if ok:
+                stack.append((0, t0, t1))
+        while stack:
+            node, t0, t1 = stack.pop()
+            if t0 > float(best["t"]):
+                continue
+            top_rows.append((node, t0, t1))
+            if not a["leaf"][node]:
+                left = int(a["first"][node])
+                ha, a0, a1 = clip(left, float(lo32), float(best["t"]))
+                hb, b0, b1 = clip(left + 1, float(lo32), float(best["t"]))
+                if ha and hb:
+                    first = a0 <= b0
+                    stack.append((left + 1, b0, b1) if first else (left, a0, a1))
+                    stack.append((left, a0, a1) if first else (left + 1, b0, b1))
+                elif ha or hb:
+                    stack.append((left, a0, a1) if ha else (left + 1, b0, b1))
+                continue
+            for k in range(int(a["count"][node])):
+                inst = int(a["order"][int(a["first"][node]) + k])
+                m = a["object_from_world"][inst]
+                ob = np.array([m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2]
+                               + m[4 * r + 3] for r in range(3)], np.float64).astype(np.float32)
+                db = np.array([m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2]
+                               for r in range(3)], np.float64).astype(np.float32)
+                if not db.any():
+                    continue
+                limit = hi32 if best["prim"] < 0 else np.nextafter(best["t"], np.float32(np.inf))
+                mesh = int(self.mesh_index[inst])
+                path = self.meshes[mesh].trace_path(ob, db, float(lo32), float(limit))
+                visits.append({"instance": inst, "mesh": mesh, "origin": ob, "direction": db,
+                               "path": path})
+                for c in COUNTERS:
+                    counts[c] += int(path[c])
+                if path["prim"] < 0:
+                    continue
+                t = np.float32(path["t"])
+                flat = int(self.flat_offsets[inst]) + int(path["prim"])
+                if t < best["t"] or (t == best["t"] and flat < best["flat"]):
+                    best.update(t=t, prim=int(path["prim"]), u=np.float32(path["u"]),
+                                v=np.float32(path["v"]), instance=inst, flat=flat)
+        rows = np.array([r[0] for r in top_rows], np.int64)
+        hit = best["prim"] >= 0
+        return {
+            "t": float(best["t"]) if hit else math.inf, "prim": best["prim"],
+            "u": float(best["u"]) if hit else 0.0, "v": float(best["v"]) if hit else 0.0,
+            "instance": best["instance"], "flat_prim": best["flat"] if hit else -1,
+            "top_steps": len(top_rows), "instance_visits": len(visits), **counts,
+            "top": {"node": rows, "t_range": np.array([r[1:] for r in top_rows]).reshape(-1, 2),
+                    "box_lo": a["lo"][rows], "box_hi": a["hi"][rows]},
+            "instances": visits,
+        }
 
     def hit_normals(self, hits: dict) -> np.ndarray:
         """(N, 3) float32 unit world normals of the hits (zeros on a miss):

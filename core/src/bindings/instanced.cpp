@@ -97,10 +97,45 @@ nb::dict stats(const InstancedScene& scene) {
     return d;
 }
 
+// The top level's nodes and the instances' inverse matrices, as arrays: for
+// drawing the top level's boxes and for trace_path's walk (bsplab/instanced.py),
+// which replays the core's walk from them.
+nb::dict top_arrays(const InstancedScene& scene) {
+    const size_t n = scene.top_nodes.size();
+    std::vector<float> lo(3 * n), hi(3 * n);
+    std::vector<uint32_t> first(n), count(n);
+    std::vector<uint8_t> leaf(n);
+    for (size_t i = 0; i < n; ++i) {
+        const BvhNode& b = scene.top_nodes[i];
+        for (int k = 0; k < 3; ++k) {
+            lo[3 * i + k] = b.lo[k];
+            hi[3 * i + k] = b.hi[k];
+        }
+        leaf[i] = b.is_leaf();
+        first[i] = b.is_leaf() ? b.first : b.left();
+        count[i] = b.is_leaf() ? b.count() : 0;
+    }
+    std::vector<double> inverse(12 * scene.instances.size());
+    for (size_t i = 0; i < scene.instances.size(); ++i)
+        std::copy(scene.instances[i].object_from_world, scene.instances[i].object_from_world + 12,
+                  inverse.begin() + 12 * i);
+    nb::dict d;
+    d["lo"] = owned_array(std::move(lo), 3);
+    d["hi"] = owned_array(std::move(hi), 3);
+    d["leaf"] = owned_array(std::move(leaf));
+    d["first"] = owned_array(std::move(first));  // a leaf's first order[] slot, else its left child
+    d["count"] = owned_array(std::move(count));
+    d["order"] = owned_array(std::vector<uint32_t>(scene.top_order));
+    d["object_from_world"] = owned_array(std::move(inverse), 12);
+    return d;
+}
+
 }  // namespace
 
 void bind_instanced(nb::module_& m) {
-    nb::class_<InstancedScene>(m, "InstancedScene").def("stats", &stats);
+    nb::class_<InstancedScene>(m, "InstancedScene")
+        .def("stats", &stats)
+        .def("top_arrays", &top_arrays, "The top level's nodes and the instances' inverses.");
     m.def("build_instanced", &build, "meshes"_a, "mesh_index"_a, "matrices"_a, "bins"_a,
           "traversal_cost"_a, "intersect_cost"_a, "threads"_a, "progress"_a.none(),
           "The top level over instances of the mesh trees (the caller keeps them alive).");

@@ -195,3 +195,39 @@ def test_packets_and_culling_flags():
         it.intersect(o, d, cull=True)
     with pytest.raises(ValueError, match="hits only"):
         it.intersect(o, d, packets=True)
+
+
+@pytest.mark.parametrize("method", ["kd", "bvh"])
+def test_trace_path_replays_intersect_bit_for_bit(method):
+    meshes, idx, mats = instanced_scenes.transformed(count=24)
+    it = bsplab.build_instanced(meshes, idx, mats, method)
+    flat = it.flatten()
+    rays = [ray_families.family(f, flat, 60, seed=9) for f in
+            ("outside_in", "random_inside", "through_edges", "short_segments")]
+    o = np.concatenate([r[0] for r in rays])
+    d = np.concatenate([r[1] for r in rays])
+    tmax = np.concatenate([r[2] for r in rays])
+    h = it.intersect(o, d, tmax=tmax, counters=True)
+    for i in range(len(o)):
+        p = it.trace_path(o[i], d[i], tmax=float(tmax[i]))
+        assert p["instance"] == h["instance"][i] and p["prim"] == h["prim"][i], i
+        assert np.float32(p["t"]) == h["t"][i] and np.float32(p["u"]) == h["u"][i], i
+        for k in ("top_steps", "instance_visits", "steps", "tests", "box_tests"):
+            assert p[k] == h[k][i], (i, k)
+        assert len(p["top"]["node"]) == p["top_steps"] and len(p["instances"]) == p["instance_visits"]
+
+
+def test_top_boxes_hold_their_instances():
+    meshes, idx, mats = instanced_scenes.transformed(count=40)
+    it = bsplab.build_instanced(meshes, idx, mats, "kd")
+    b = it.top_boxes()
+    held = np.concatenate([i for i in b["instances"]])
+    assert sorted(held) == list(range(40))
+    assert all(len(i) == 0 for i, leaf in zip(b["instances"], b["leaf"]) if not leaf)
+    flat = it.flatten()
+    for inst in range(40):
+        tri = flat[it.flat_offsets[inst]:it.flat_offsets[inst] + len(meshes[idx[inst]])]
+        row = next(r for r, i in enumerate(b["instances"]) if inst in i)
+        assert (tri.reshape(-1, 3) >= b["lo"][row]).all() and (tri.reshape(-1, 3) <= b["hi"][row]).all()
+    shallow = it.top_boxes(max_depth=2)
+    assert shallow["depth"].max() == 2 and len(shallow["lo"]) <= 7
