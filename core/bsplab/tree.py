@@ -234,7 +234,9 @@ def build(triangles, method: str = "kd", *, progress=None, costs=None, **options
         core_tree = _core.build(tris, m.name, opts, progress)
     except MemoryError as e:
         # The core's "build needs more than ... (memory_limit_mb=...)": name the method.
+        # A scene of many instances fits in far less as two levels.
         if str(e).startswith("build needs"):
-            raise MemoryError(f"{method} {e}") from None
+            raise MemoryError(f"{method} {e}; a scene of instanced meshes needs far less built "
+                              "in two levels (bsplab.build_instanced: one tree per mesh)") from None
         raise
     return Tree(core_tree, method, opts)

@@ -1,9 +1,12 @@
 #include "registry.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cctype>
 #include <stdexcept>
 #include <type_traits>
+
+#include <unistd.h>
 
 #include "builders/bsp_build.hpp"
 #include "builders/bvh_build.hpp"
@@ -12,6 +15,19 @@
 namespace bsp {
 
 namespace {
+
+// The default memory limit of a build: this share of the machine's physical
+// memory (sysconf), so that a big machine builds big flat scenes and a
+// small one stops before it swaps; kFallbackMemoryMb where the system does
+// not say.
+constexpr double kMemoryShare = 0.5;
+constexpr double kFallbackMemoryMb = 4096.0;
+
+double default_memory_limit_mb() {
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    if (pages <= 0 || page <= 0) return kFallbackMemoryMb;
+    return std::floor(kMemoryShare * double(pages) * double(page) / (1024.0 * 1024.0));
+}
 
 // ---- Setting BuildOptions fields from OptionValues -------------------------
 
@@ -96,9 +112,10 @@ std::vector<OptionSpec> make_option_specs() {
          .label = "Max Duplication", .short_label = "Duplication",
          .help = "Stop splitting when triangle references exceed this multiple of the triangles"},
         {NUMBER_FIELD(memory_limit_mb), .type = T::Float, .group = "common",
-         .default_value = real(4096.0), .min = whole(0), .min_open = true,
+         .default_value = real(default_memory_limit_mb()), .min = whole(0), .min_open = true,
          .label = "Memory Limit (MB)", .short_label = "Memory",
-         .help = "The build stops with a MemoryError beyond this many megabytes"},
+         .help = "The build stops with a MemoryError beyond this many megabytes "
+                 "(default: half the machine's physical memory)"},
         {NUMBER_FIELD(threads), .type = T::Int, .group = "common", .default_value = whole(0),
          .min = whole(0), .max = whole(1024), .soft_max = 64, .label = "Threads",
          .short_label = "Threads", .help = "Worker threads of the core (0: all cores)"},

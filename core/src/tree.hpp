@@ -137,7 +137,7 @@ struct BuildOptions {
     int max_depth = 0;             // 0: 8 + 1.3 log2(N), as in pbrt
     int leaf_size = 1;             // nodes with this many triangles or fewer become leaves
     float max_duplication = 8.0f;  // references <= max_duplication * triangles
-    double memory_limit_mb = 4096.0;
+    double memory_limit_mb = 4096.0;  // the registry's default is sized from the machine
     int threads = 0;
     // The BSP family (ignored by the kd builder).
     // How the builder picks candidate directions at a node: a name in

@@ -231,3 +231,13 @@ def test_top_boxes_hold_their_instances():
         assert (tri.reshape(-1, 3) >= b["lo"][row]).all() and (tri.reshape(-1, 3) <= b["hi"][row]).all()
     shallow = it.top_boxes(max_depth=2)
     assert shallow["depth"].max() == 2 and len(shallow["lo"]) <= 7
+
+
+def test_the_memory_limit_is_sized_from_the_machine_and_its_message_suggests_two_levels():
+    import os
+    schema = bsplab.option_schema()
+    default = schema["memory_limit_mb"]["default"]
+    physical = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") / 2**20
+    assert default == pytest.approx(0.5 * physical, abs=1.0)
+    with pytest.raises(MemoryError, match="two levels"):
+        bsplab.build(bsplab.scenes.generate("room"), "kd", memory_limit_mb=0.01)
