@@ -147,3 +147,57 @@ def build_scene(spec: list[dict], scale_exp: int = 0, offset=(0, 0, 0)) -> np.nd
         return np.zeros((0, 3, 3), np.float32)
     tris = np.concatenate(done) * 10.0 ** scale_exp + np.asarray(offset, np.float64)
     return tris.astype(np.float32)
+
+
+# Instanced scenes: meshes made of parts (above), placed by instances whose
+# matrices are drawn from these kinds. "grid" moves by eighths only and
+# "turn" turns by quarter turns (exact in float: neighbouring instances
+# share faces and edges exactly, as tiled assets do); the others rotate at
+# random, scale unevenly (1:8), mirror, shear, or scale by 10^e.
+MATRIX_KINDS = ("grid", "turn", "rotate", "stretch", "mirror", "shear", "scale")
+
+
+def instance_matrix(m: dict) -> np.ndarray:
+    """The 3 x 4 world-from-object matrix of an instance spec: {"kind",
+    "seed", "at" (eighths), "e" (a power of ten, for "scale")}."""
+    rng = np.random.default_rng(m.get("seed", 0))
+    at = _grid_point(m.get("at", (0, 0, 0)))
+    kind = m["kind"]
+    if kind == "grid":
+        a = np.eye(3)
+    elif kind == "turn":
+        a = np.eye(3)
+        for axis in rng.integers(0, 3, size=int(rng.integers(1, 4))):
+            c = [(1, 2), (2, 0), (0, 1)][axis]
+            q = np.eye(3)
+            q[c[0], c[0]] = q[c[1], c[1]] = 0.0
+            q[c[0], c[1]], q[c[1], c[0]] = -1.0, 1.0
+            a = q @ a
+    elif kind in ("rotate", "stretch", "mirror", "shear"):
+        a = _rotation(rng)
+        if kind == "stretch":
+            a = a @ np.diag(rng.uniform(0.25, 2.0, 3))
+        elif kind == "mirror":
+            a = a @ np.diag([1.0, -1.0, 1.0])
+        elif kind == "shear":
+            a = a @ np.array([[1.0, rng.uniform(-1, 1), 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    elif kind == "scale":
+        a = np.eye(3) * 10.0 ** int(m.get("e", 0))
+    else:
+        raise ValueError(f"unknown instance kind {kind!r}; known: {', '.join(MATRIX_KINDS)}")
+    return np.hstack([a, at.reshape(3, 1)])
+
+
+def build_instanced_scene(spec: dict):
+    """(meshes, mesh_index, matrices) of an instanced spec: {"meshes": [a
+    part list per mesh], "instances": [{"mesh": i, **instance_matrix's}]}.
+    Meshes without triangles are dropped with their instances."""
+    meshes, keep = [], {}
+    for i, parts in enumerate(spec["meshes"]):
+        tris = build_scene(parts)
+        if len(tris):
+            keep[i] = len(meshes)
+            meshes.append(tris)
+    inst = [m for m in spec["instances"] if m["mesh"] in keep]
+    mats = np.array([instance_matrix(m) for m in inst]).reshape(-1, 3, 4)
+    return meshes, np.array([keep[m["mesh"]] for m in inst], np.int64), mats
