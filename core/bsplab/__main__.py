@@ -1,4 +1,4 @@
-"""Command line: `python -m bsplab {demo,bench,bench-family,bench-families,bench-cull,bench-build,experiment,
+"""Command line: `python -m bsplab {demo,bench,bench-family,bench-families,bench-cull,bench-build,bench-instanced,experiment,
 report,results,verdict,agree,calibrate,scenes,methods}`."""
 
 from __future__ import annotations
@@ -139,6 +139,20 @@ def cmd_build_bench(args) -> int:
                          f"is here (the shared scenes folder: {build_bench.shared_folder()}); "
                          "name generated scenes or mesh files with --scenes")
     text = build_bench.build_markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
+    print(text)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+        print(f"written {out}")
+    return 0
+
+
+def cmd_instanced_bench(args) -> int:
+    from bsplab.lab import instanced_bench
+    out = output_file(args.out, "--out", "instanced_benchmark.md") if args.out else None
+    rows = instanced_bench.bench_instanced(args.worlds, args.methods, side=args.side,
+                                           rays=args.rays, rounds=args.repeats)
+    text = instanced_bench.markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
     print(text)
     if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -345,6 +359,16 @@ def main(argv=None) -> int:
                     help="also time bsp_wn+kd (K = 8) and bsp_ize+kd, as multiples of kd")
     bb.add_argument("--out", help="also write the Markdown table here")
     bb.set_defaults(func=cmd_build_bench)
+
+    bi = sub.add_parser("bench-instanced",
+                        help="instanced worlds: two levels against the flat tree and Embree")
+    bi.add_argument("--worlds", nargs="+", help="default: grid25 suzanne_grid city forest spheres10k")
+    bi.add_argument("--methods", nargs="+", help="the mesh trees' methods (default: kd bvh)")
+    bi.add_argument("--side", type=whole(1), default=256, help="primary rays: side x side")
+    bi.add_argument("--rays", type=whole(1), default=65_536, help="random rays")
+    bi.add_argument("--repeats", type=whole(1), default=3, help="paired rounds (default 3)")
+    bi.add_argument("--out", help="also write the Markdown page here")
+    bi.set_defaults(func=cmd_instanced_bench)
 
     x = sub.add_parser("experiment", help="run an experiment spec (TOML or JSON), resumable")
     x.add_argument("spec", help="spec file; see docs/experiments.md")

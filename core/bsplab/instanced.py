@@ -164,8 +164,13 @@ class InstancedTree:
             for k in range(3):
                 p = (float(a["lo"][node, k]) - o[k]) * inv[k]
                 q = (float(a["hi"][node, k]) - o[k]) * inv[k]
-                t0 = float(np.fmax(t0, np.fmin(p, q)))
-                t1 = float(np.fmin(t1, np.fmax(p, q)))
+                # The core's comparisons (instanced_traverse.cpp's clip).
+                near = p if (p < q or q != q) else q
+                far = p if (p > q or q != q) else q
+                if near > t0:
+                    t0 = near
+                if far < t1:
+                    t1 = far
             return t0 <= t1, t0, t1
 
         best = {"t": hi32, "prim": -1, "u": np.float32(0), "v": np.float32(0),

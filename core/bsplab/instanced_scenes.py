@@ -112,3 +112,92 @@ TEST_SCENES = {
     "nested": nested,
     "scales": scales,
 }
+
+
+def uv_sphere(rings: int = 20, segments: int = 25) -> np.ndarray:
+    """A closed unit sphere of 2 x rings x segments triangles (the default
+    1,000), every edge shared."""
+    th = np.linspace(0, np.pi, rings + 1)
+    ph = np.linspace(0, 2 * np.pi, segments + 1)
+    p = np.stack([np.sin(th)[:, None] * np.cos(ph), np.sin(th)[:, None] * np.sin(ph),
+                  np.repeat(np.cos(th)[:, None], segments + 1, axis=1)], axis=-1)
+    p[:, -1] = p[:, 0]  # the seam: the same vertices, bit for bit
+    p[0, :] = p[0, 0]
+    p[-1, :] = p[-1, 0]
+    a, b = p[:-1, :-1], p[:-1, 1:]
+    c, d = p[1:, :-1], p[1:, 1:]
+    tris = np.concatenate([np.stack([a, c, d], axis=2).reshape(-1, 3, 3),
+                           np.stack([a, d, b], axis=2).reshape(-1, 3, 3)])
+    return tris.astype(np.float32)
+
+
+def _size(tris: np.ndarray) -> float:
+    pts = tris.reshape(-1, 3)
+    return float((pts.max(axis=0) - pts.min(axis=0)).max())
+
+
+def grid(mesh: np.ndarray, side: int):
+    """side x side copies of one mesh on a square grid, a tenth of its size
+    apart (the issue's Suzanne grid, with any mesh)."""
+    step = 1.1 * _size(mesh)
+    lo = mesh.reshape(-1, 3).min(axis=0)
+    mats = [affine(np.eye(3), (i * step - lo[0], j * step - lo[1], -lo[2]))
+            for i in range(side) for j in range(side)]
+    return [mesh], np.zeros(len(mats), np.int64), np.array(mats)
+
+
+def city(blocks: int = 40, seed: int = 0):
+    """A city: a blocks x blocks street grid of cube towers (uneven scales,
+    the heights random) and, on every fifth block, an instance of the
+    generated room as a building's interior."""
+    rng = np.random.default_rng(seed)
+    meshes = [cube(), scenes.generate("room")]
+    room = meshes[1]
+    room_size = _size(room)
+    mats, idx = [], []
+    for i in range(blocks):
+        for j in range(blocks):
+            if (i * blocks + j) % 5 == 0:
+                a = np.eye(3) * (8.0 / room_size)
+                mats.append(affine(a, (10.0 * i + 4, 10.0 * j + 4, 0)))
+                idx.append(1)
+                continue
+            for _ in range(4):
+                s = np.diag([rng.uniform(1, 4), rng.uniform(1, 4), rng.uniform(2, 30)])
+                mats.append(affine(s, (10.0 * i + rng.uniform(0, 6), 10.0 * j + rng.uniform(0, 6), 0)))
+                idx.append(0)
+    return meshes, np.array(idx), np.array(mats)
+
+
+def forest(count: int = 2000, seed: int = 0):
+    """A forest: `count` instances of three meshes - the generated fan (a
+    fern), a 1,000-triangle sphere (a bush), a tall stretched sphere (a
+    tree) - with random rotations about z and scales, on a square sized for
+    about one plant per 4 x 4 units."""
+    tree = uv_sphere(24, 40) * np.array([1.0, 1.0, 4.0], np.float32)
+    fan = scenes.generate("fan")
+    fan = fan / np.float32(_size(fan))
+    return scatter([fan, uv_sphere(), tree.astype(np.float32)], count,
+                   4.0 * np.sqrt(count), seed)
+
+
+# The benchmark's worlds, by name: () -> (meshes, mesh_index, matrices).
+# "suzanne_grid" stands for the issue's 100-Suzanne grid: 100 copies of the
+# 69k-triangle bunny (shared scenes) - or, where they are absent, of the
+# generated spheres (48k).
+def _grid_mesh() -> np.ndarray:
+    from . import workloads
+    d = workloads.shared_scenes_dir()
+    if d is not None and (d / "bunny.ply").exists():
+        from . import io
+        return io.load_mesh(d / "bunny.ply")
+    return scenes.generate("spheres")
+
+
+WORLDS = {
+    "grid25": lambda: grid(_grid_mesh(), 5),
+    "suzanne_grid": lambda: grid(_grid_mesh(), 10),
+    "forest": forest,
+    "city": city,
+    "spheres10k": lambda: scatter([uv_sphere()], 10_000, 400.0, 1),
+}

@@ -29,14 +29,17 @@ TraceRange bottom_kernel(const Tree& tree, bool counting) {
                                             : k.single_ray[counting][int(LeafBoxes::None)];
 }
 
-// The ray's range [t0, t1] in box b, within [t0, t1] on entry. NaN
-// crossings (an origin in a face plane, the ray parallel to it) are
-// ignored: fmax/fmin return the other operand.
-bool clip(const Box& b, const double o[3], const double inv[3], double& t0, double& t1) {
+// The ray's range [t0, t1] in box b, within [t0, t1] on entry. A NaN
+// crossing (an origin in a face plane, the ray parallel to it) is ignored:
+// the comparisons below are false for it and keep t0 / t1 - what fmax and
+// fmin do, without their library calls.
+inline bool clip(const Box& b, const double o[3], const double inv[3], double& t0, double& t1) {
     for (int k = 0; k < 3; ++k) {
         const double a = (double(b.lo[k]) - o[k]) * inv[k], c = (double(b.hi[k]) - o[k]) * inv[k];
-        t0 = std::fmax(t0, std::fmin(a, c));
-        t1 = std::fmin(t1, std::fmax(a, c));
+        // min and max of the two, the other where one is NaN (fmin, fmax).
+        const double near = (a < c || c != c) ? a : c, far = (a > c || c != c) ? a : c;
+        if (near > t0) t0 = near;
+        if (far < t1) t1 = far;
     }
     return t0 <= t1;
 }
