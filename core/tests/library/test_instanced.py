@@ -241,3 +241,34 @@ def test_the_memory_limit_is_sized_from_the_machine_and_its_message_suggests_two
     assert default == pytest.approx(0.5 * physical, abs=1.0)
     with pytest.raises(MemoryError, match="two levels"):
         bsplab.build(bsplab.scenes.generate("room"), "kd", memory_limit_mb=0.01)
+
+
+def test_an_instances_own_tree_is_drawn_in_place():
+    meshes, idx, mats = instanced_scenes.transformed(count=10)
+    it = bsplab.build_instanced(meshes, idx, mats, "kd")
+    boxes = it.top_boxes()
+    for i in range(10):
+        row = next(r for r, ins in enumerate(boxes["instances"]) if i in ins)
+        lo, hi = boxes["lo"][row], boxes["hi"][row]
+        cells = it.instance_leaf_cells(i, max_depth=4)
+        pad = 1e-4 * np.abs(hi - lo).max()
+        assert (cells["vertices"] >= lo - pad).all() and (cells["vertices"] <= hi + pad).all()
+        poly = it.instance_split_polygons(i, 3)
+        # Each polygon's vertices lie in its plane, carried to the world.
+        for p in range(min(20, len(poly["offsets"]) - 1)):
+            v = poly["vertices"][poly["offsets"][p]:poly["offsets"][p + 1]].astype(np.float64)
+            n, d = poly["plane"][p, :3], poly["plane"][p, 3]
+            assert np.abs(v @ n - d).max() <= 1e-4 * (1 + np.abs(v).max())
+        # The point at an instance's first triangle's centre is in that instance.
+        centre = it.to_world(i, meshes[idx[i]][0].mean(axis=0))
+        found = it.instance_at(centre)
+        assert found is not None
+        assert it.instance_at((1e6, 0, 0)) is None
+    bvh = bsplab.build_instanced(meshes, idx, mats, "bvh")
+    b = bvh.instance_node_boxes(3, 2)
+    assert b["corners"].shape[1:] == (8, 3)
+    tri = bvh.flatten()[bvh.flat_offsets[3]:bvh.flat_offsets[3] + len(meshes[idx[3]])]
+    root = b["corners"][0].astype(np.float64)
+    # The root's corners span the instance's triangles (an oriented box).
+    assert (tri.reshape(-1, 3).min(axis=0) >= root.min(axis=0) - 1e-4).all()
+    assert (tri.reshape(-1, 3).max(axis=0) <= root.max(axis=0) + 1e-4).all()
