@@ -333,11 +333,8 @@ class InstancedTree:
         """The (T, 3, 3) float32 world triangles of every instance in order
         (each mesh's triangles in input order): the scene a flat tree, and
         Embree, would trace. Transformed in double, rounded once."""
-        parts = []
-        for mesh, m in zip(self.mesh_index, self.matrices):
-            tris = self.meshes[mesh].triangles.astype(np.float64)
-            parts.append((tris @ m[:, :3].T + m[:, 3]).astype(np.float32))
-        return np.concatenate(parts) if parts else np.zeros((0, 3, 3), np.float32)
+        from .instanced_scenes import flatten
+        return flatten([t.triangles for t in self.meshes], self.mesh_index, self.matrices)
 
     def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=False,
                   counters=True, packets=False, progress=None) -> dict:

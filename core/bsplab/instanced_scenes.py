@@ -11,6 +11,17 @@ import numpy as np
 from . import scenes
 
 
+def flatten(meshes, mesh_index, matrices) -> np.ndarray:
+    """The (T, 3, 3) float32 world triangles of every instance in order (each
+    mesh's triangles in input order), transformed in double, rounded once:
+    what InstancedTree.flatten gives for the same scene."""
+    parts = []
+    for mesh, m in zip(mesh_index, np.asarray(matrices, np.float64)):
+        tris = np.asarray(meshes[mesh], np.float32).astype(np.float64)
+        parts.append((tris @ m[:, :3].T + m[:, 3]).astype(np.float32))
+    return np.concatenate(parts) if parts else np.zeros((0, 3, 3), np.float32)
+
+
 def cube() -> np.ndarray:
     """The closed unit cube [0, 1]^3: 12 triangles, every edge shared."""
     c = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float32)

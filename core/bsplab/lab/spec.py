@@ -51,6 +51,12 @@ class Spec:
     random_rays: int = 65_536     # rays of the `random` workload
     cull: bool = False            # also trace each tree with leaf culling on, paired
     hits_only: bool = False       # also trace each tree on its hits-only paths, paired
+    # How a scene's instances are built: "flat" (one tree over the flattened
+    # triangles, the theses' setting) or "two-level" (a tree per mesh and a
+    # BVH over the instances, bsplab.build_instanced; a flat scene is then
+    # one mesh under one identity instance). Instanced worlds are the scenes
+    # "instanced:<name>" of bsplab.instanced_scenes.WORLDS.
+    instances: str = "flat"
 
     def fingerprint(self) -> str:
         """What decides the rows (not how they are run): resume only matches this."""
@@ -86,7 +92,9 @@ def variant_label(key: str) -> str:
     return ", ".join(f"{k} {v}" for k, v in options.items()) or "defaults"
 
 
-LATER_KEYS = ("variants", "method_variants", "random_rays", "cull", "hits_only")
+LATER_KEYS = ("variants", "method_variants", "random_rays", "cull", "hits_only", "instances")
+INSTANCES = ("flat", "two-level")
+INSTANCED_PREFIX = "instanced:"
 SPEC_DEFAULTS = {f.name: f.default if f.default_factory is MISSING else f.default_factory()
                  for f in fields(Spec)}
 
@@ -225,6 +233,12 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
     for key in ("cull", "hits_only"):
         if not isinstance(d[key], bool):
             raise SpecError(f"{key} must be true or false, got {_kind(d[key])} {d[key]!r}")
+    if not isinstance(d["instances"], str) or d["instances"] not in INSTANCES:
+        raise SpecError(f"instances must be one of {', '.join(map(repr, INSTANCES))}, "
+                        f"got {d['instances']!r}")
+    if d["instances"] == "two-level" and d["cull"]:
+        raise SpecError("cull = true: leaf culling is not offered for two-level scenes "
+                        "(instances = \"two-level\"); use instances = \"flat\" to time culling")
     spec = Spec(name=str(d["name"]), scenes=list(scenes), methods=list(methods), ks=ks,
                 method_ks=method_ks, seeds=seeds,
                 repetitions=integer("repetitions", 1, 1000), workloads=list(workloads),
@@ -235,7 +249,7 @@ def make_spec(data: dict, base_dir: Path | None = None, check_files: bool = True
                 scheduler=str(d["scheduler"]), variants=variants,
                 method_variants=method_variants,
                 random_rays=integer("random_rays", 1, 100_000_000), cull=d["cull"],
-                hits_only=d["hits_only"])
+                hits_only=d["hits_only"], instances=d["instances"])
     _check_options(spec)
     return spec
 
@@ -394,6 +408,12 @@ def check_scene(scene: str) -> None:
     """SpecError unless `scene` names a generated scene, a mesh file or a shared
     mesh (checked before the run, so the messages name the spec's mistake)."""
     if scene in scene_names.NAMES + scene_names.PROBE_NAMES:
+        return
+    if scene.startswith(INSTANCED_PREFIX):
+        from ..instanced_scenes import WORLDS
+        if scene[len(INSTANCED_PREFIX):] not in WORLDS:
+            raise SpecError(f"unknown instanced world {scene!r}; worlds: "
+                            f"{', '.join(INSTANCED_PREFIX + w for w in WORLDS)}")
         return
     if scene_names.looks_like_file(scene):
         p = Path(scene)

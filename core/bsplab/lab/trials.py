@@ -52,9 +52,19 @@ def trials(spec: Spec) -> list[Trial]:
 
 @dataclass
 class SceneData:
-    """Triangles and the camera of a scene (its own, or one framing it)."""
+    """Triangles and the camera of a scene (its own, or one framing it); an
+    instanced world's triangles are its flattened scene, and `instanced`
+    holds its (meshes, mesh_index, matrices)."""
     triangles: np.ndarray
     camera: object
+    instanced: tuple | None = None
+
+    def parts(self) -> tuple:
+        """(meshes, mesh_index, matrices): a flat scene is one mesh under one
+        identity instance."""
+        if self.instanced is not None:
+            return self.instanced
+        return [self.triangles], np.zeros(1, np.int64), np.eye(4)[None, :3]
 
 
 _scene_cache: dict = {}
@@ -63,9 +73,16 @@ _scene_cache: dict = {}
 def load_scene(scene: str) -> SceneData:
     """Loads a scene once per process (one at a time: the big ones are 10 MB+)."""
     if scene not in _scene_cache:
-        tris, camera = scenes.load_with_camera(scene)
+        from .spec import INSTANCED_PREFIX
+        instanced = None
+        if scene.startswith(INSTANCED_PREFIX):
+            from .. import instanced_scenes
+            instanced = instanced_scenes.WORLDS[scene[len(INSTANCED_PREFIX):]]()
+            tris, camera = instanced_scenes.flatten(*instanced), None
+        else:
+            tris, camera = scenes.load_with_camera(scene)
         _scene_cache.clear()
-        _scene_cache[scene] = SceneData(tris, camera or workloads.framing_camera(tris))
+        _scene_cache[scene] = SceneData(tris, camera or workloads.framing_camera(tris), instanced)
     return _scene_cache[scene]
 
 
@@ -139,10 +156,18 @@ def run_trial(spec: Spec, trial: Trial, scene_data: SceneData | None = None,
     data = scene_data or load_scene(trial.scene)
     tris = data.triangles
     embree, rays = scene_references(spec, trial.scene, data)
-    tree = build(tris, method=trial.method, threads=spec.build_threads, progress=progress,
-                 **build_options(spec, trial.method, trial.k, trial.seed, trial.variant))
-    # A kd trial is its own reference, unless a variant made it another kd-tree.
-    own_reference = trial.method == "kd" and not trial.variant
+    options = build_options(spec, trial.method, trial.k, trial.seed, trial.variant)
+    if spec.instances == "two-level":
+        from .. import build_instanced
+        tree = TwoLevelTrial(build_instanced(*data.parts(), trial.method,
+                                             threads=spec.build_threads, progress=progress,
+                                             **options))
+    else:
+        tree = build(tris, method=trial.method, threads=spec.build_threads, progress=progress,
+                     **options)
+    # A kd trial is its own reference, unless a variant made it another kd-tree
+    # (or it is a two-level scene: the reference is the flat kd-tree).
+    own_reference = trial.method == "kd" and not trial.variant and spec.instances == "flat"
     kd = tree if own_reference else kd_reference(spec, trial.scene, data)
 
     def check_cancel():
@@ -155,24 +180,75 @@ def run_trial(spec: Spec, trial: Trial, scene_data: SceneData | None = None,
                               between_rounds=check_cancel)
         if kd is tree:
             times.seconds["kd"] = times.seconds["ours"]
-        rows.append(_row(trial, tris, tree.stats, r, times, embree))
+        slack = tree.slack if isinstance(tree, TwoLevelTrial) else None
+        rows.append(_row(trial, tris, tree.stats, r, times, embree, slack))
     return rows
 
 
-def _unexplained(hits: dict, embree_hits: dict, tris, rays: Rays) -> tuple[int, int]:
+class TwoLevelTrial:
+    """A two-level scene (InstancedTree) as a trial's tracers and rows see a
+    tree: hits numbered in the flattened scene (Embree's and the kd
+    reference's numbering), and the statistics of both levels summed under
+    the flat tree's names (nodes, leaves, bytes: bottom + top; sah: the
+    bottom trees', weighted by their instances' triangles)."""
+
+    def __init__(self, scene):
+        self.scene = scene
+
+    def slack(self, rays: Rays, hits: dict, reference: dict) -> np.ndarray:
+        """The oracle's tolerance for these hits (the transform's rounding,
+        InstancedTree.transform_slack) against a reference's on the same rays."""
+        o, d = rays.origins, rays.directions
+        return np.maximum(
+            self.scene.transform_slack(o, d, hits["t"], hits["instance"]),
+            self.scene.transform_slack(o, d, reference["t"],
+                                       self.scene.instance_of(reference["prim"])))
+
+    def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, **kwargs) -> dict:
+        h = self.scene.intersect(origins, directions, tmin, tmax, **kwargs)
+        h["prim"] = h.pop("flat_prim").astype(np.int32)
+        return h
+
+    @property
+    def stats(self) -> dict:
+        s = self.scene.stats
+        bottom = [t.stats for t in self.scene.meshes]
+        weights = np.bincount(self.scene.mesh_index, minlength=len(bottom))
+        tris = np.array([b["triangles"] for b in bottom], float) * weights
+        out = {k: sum(b[k] for b in bottom) for k in
+               ("nodes", "kd_nodes", "general_nodes", "leaves", "box_bytes")}
+        out["nodes"] += s["top_nodes"]
+        out["leaves"] += s["top_leaves"]
+        refs = sum(b["references"] for b in bottom)
+        live = sum(b["triangles"] - b["degenerate"] for b in bottom)
+        out.update(
+            build_seconds=s["bottom_build_seconds"] + s["top_build_seconds"],
+            duplication=refs / max(1, live), bytes=s["bytes"],
+            sah_cost=float(np.dot(tris, [b["sah_cost"] for b in bottom]) / max(1.0, tris.sum())),
+            level_planes=[], level_directions=[],
+            max_depth=max(b["max_depth"] for b in bottom) + s["top_depth"],
+            mean_leaf_size=refs / max(1, sum(b["leaves"] - b["empty_leaves"] for b in bottom)),
+            warnings=[w for b in bottom for w in b.get("warnings", ())])
+        return out
+
+
+def _unexplained(hits: dict, embree_hits: dict, tris, rays: Rays,
+                 slack=None) -> tuple[int, int]:
     """Rays whose answer differs from Embree's beyond ties and grazing edges, and
-    the grazing ones."""
+    the grazing ones; `slack` (a two-level trial's) gives the transform's rounding."""
     from .. import oracle
     c = oracle.compare(hits, embree_hits, triangles=tris, origins=rays.origins,
-                       directions=rays.directions)
+                       directions=rays.directions,
+                       slack=None if slack is None else slack(rays, hits, embree_hits))
     return len(c["unexplained"]), c["grazing"]
 
 
-def _row(trial: Trial, tris, s: dict, rays: Rays, times: PairedTimes, embree) -> dict:
+def _row(trial: Trial, tris, s: dict, rays: Rays, times: PairedTimes, embree,
+         slack=None) -> dict:
     hits = times.results["ours"]
     unexplained = grazing = ""
     if embree is not None:
-        unexplained, grazing = _unexplained(hits, times.results["embree"], tris, rays)
+        unexplained, grazing = _unexplained(hits, times.results["embree"], tris, rays, slack)
     row = {
         "scene": trial.scene, "triangles": len(tris), "method": trial.method,
         "k": "" if trial.k is None else trial.k, "seed": trial.seed, "workload": rays.workload,
@@ -210,5 +286,5 @@ def _row(trial: Trial, tris, s: dict, rays: Rays, times: PairedTimes, embree) ->
             # Every path's every hit is checked: a fast path that went wrong shows.
             if embree is not None:
                 row[f"{path}_unexplained"] = _unexplained(
-                    times.results[path], times.results["embree"], tris, rays)[0]
+                    times.results[path], times.results["embree"], tris, rays, slack)[0]
     return row

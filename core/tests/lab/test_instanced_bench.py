@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import bsplab
 from bsplab import instanced_scenes
 from bsplab.lab import instanced_bench
 
@@ -47,3 +48,42 @@ def test_unknown_worlds_and_methods_are_named():
         instanced_bench.bench_instanced(["moon"])
     with pytest.raises(ValueError):
         instanced_bench.bench_instanced(["city"], ["kdd"])
+
+
+def test_a_spec_traces_two_levels_and_checks_them_against_embree(monkeypatch):
+    import sys
+
+    from bsplab.lab import spec as specs
+    trials = sys.modules["bsplab.lab.trials"]
+    monkeypatch.setitem(instanced_scenes.WORLDS, "spheres50",
+                        lambda: instanced_scenes.scatter([instanced_scenes.uv_sphere(8, 10)],
+                                                         50, 20.0, 3))
+    base = {"scenes": ["instanced:spheres50", "room"], "methods": ["kd", "bvh"],
+            "workloads": ["primary", "random"], "width": 24, "height": 24,
+            "random_rays": 1500, "repetitions": 1, "hits_only": True}
+    two = specs.make_spec({**base, "instances": "two-level"})
+    flat = specs.make_spec(base)
+    assert two.fingerprint() != flat.fingerprint()
+    assert flat.fingerprint() == specs.make_spec({**base, "instances": "flat"}).fingerprint()
+    for spec in (two, flat):
+        for trial in trials.trials(spec):
+            for row in trials.run_trial(spec, trial):
+                assert row["unexplained"] == 0, (spec.instances, trial.label(), row["workload"])
+                assert row["hits_only_unexplained"] == 0
+                assert row["hits"] > 0 and row["nodes"] > 0
+    # Two levels over the flat room: one mesh, one identity instance, the
+    # mesh's tree plus one top node.
+    data = trials.load_scene("room")
+    row = trials.run_trial(two, trials.Trial("room", "kd", None, 1))[0]
+    assert row["nodes"] == bsplab.build(data.triangles, "kd").stats["nodes"] + 1
+
+
+@pytest.mark.parametrize("data, message", [
+    ({"instances": "both"}, "instances must be one of"),
+    ({"instances": "two-level", "cull": True}, "culling is not offered"),
+    ({"scenes": ["instanced:moon"]}, "unknown instanced world"),
+])
+def test_bad_instanced_specs_are_refused(data, message):
+    from bsplab.lab import spec as specs
+    with pytest.raises(specs.SpecError, match=message):
+        specs.make_spec({"scenes": ["room"], **data})
