@@ -35,6 +35,9 @@ def parse_args():
     parser.add_argument("--blend", help="open this .blend instead of generating a scene")
     parser.add_argument("--out", default="bsplab_preview.png", help="PNG to write")
     parser.add_argument("--method", help="tree method (default: the add-on's)")
+    parser.add_argument("--instances", choices=("two_level", "flatten"),
+                        help="build instances in two levels or flattened (default: the "
+                             "add-on's, two-level)")
     parser.add_argument("--mode", default="shaded", help="render mode")
     parser.add_argument("--preview", type=int, default=100,
                         help="preview size, %% of the scene's render resolution (default 100)")
@@ -137,6 +140,8 @@ def run(args):
     settings = scene.bsplab
     if args.method:
         settings.method = args.method
+    if args.instances:
+        settings.instances = args.instances
     settings.render_mode = args.mode
     settings.preview_percentage = args.preview
     settings.compare_with_embree = args.compare_embree

@@ -25,11 +25,22 @@ from .worker import UserError, WorkerJob
 COUNTERS = ("steps", "tests", "culled", "box_tests")
 
 
+# The panel's "Instances" choice (Scene.bsplab.instances).
+TWO_LEVEL, FLATTEN = "two_level", "flatten"
+# Leaf culling has no two-level trace in the core (InstancedTree.intersect
+# refuses cull=True).
+TWO_LEVEL_CULL_MESSAGE = ("Leaf culling is not available for two-level builds: untick Leaf "
+                          "Culling (and pick another mode than Heat Culled), or choose "
+                          "Instances: Flatten")
+
+
 @dataclass
 class JobInput:
     """Everything Build & Render needs, copied out of bpy."""
 
-    triangles: np.ndarray  # (N, 3, 3) float32, world space
+    # (N, 3, 3) float32 world-space triangles (a flat build), or None for
+    # a two-level one (`instanced` then holds the scene).
+    triangles: np.ndarray
     objects: int
     instances: int
     camera: object  # a CameraSpec: kwargs() for bsplab.Camera, width, height, name
@@ -48,6 +59,21 @@ class JobInput:
     b: object = None
     # The comparison's preview (compare.VIEWS).
     compare_view: str = "split"
+    # A two-level build's scene (bsplab.blender.extract.InstancedGeometry:
+    # unique meshes in object space, each instance's mesh and matrix), None
+    # for a flat one.
+    instanced: object = None
+
+    @property
+    def two_level(self):
+        return self.instanced is not None
+
+    @property
+    def triangle_count(self):
+        """Triangles of the (flattened) scene."""
+        if self.instanced is not None:
+            return self.instanced.triangle_count
+        return len(self.triangles)
 
 
 @dataclass(frozen=True)
@@ -85,22 +111,37 @@ def compare_with_embree(bsplab, tree, cam, inp, embree_scene=None):
                 "message": "Embree comparison unavailable: this Blender exports its own {}, "
                            "which clashes with embreex's Embree".format(clash)}
     origins, directions = cam.rays(inp.camera.width, inp.camera.height)
+    two_level = tree_cache.is_two_level(tree)
     start = time.perf_counter()
     # The same work on both sides: hits only, on one thread (embreex traces
     # its rays one by one on one thread), so the ratio compares the trees and
     # kernels, not the core counts.
-    ours = tree.intersect(origins, directions, threads=1, cull=inp.cull, counters=False)
+    ours = tree.intersect(origins, directions, threads=1, cull=inp.cull and not two_level,
+                          counters=False)
     bsplab_seconds = time.perf_counter() - start
+    # Embree has no instances here: it traces the flattened scene (every
+    # instance's triangles in world space), and a two-level hit is compared
+    # by its index in that scene (flat_prim), with the transform's rounding
+    # as the oracle's slack (docs/instances.md).
+    triangles = tree.flatten() if two_level else tree.triangles
     if embree_scene is None:
-        tracer, reused = oracle.EmbreeTracer(tree.triangles), False
+        tracer, reused = oracle.EmbreeTracer(triangles), False
     else:
-        tracer, reused = embree_scene(tree.triangles)
+        tracer, reused = embree_scene(triangles)
     start = time.perf_counter()
     theirs = tracer.intersect(origins, directions)
     embree_seconds = time.perf_counter() - start
-    compare = oracle.compare(ours, theirs, triangles=tree.triangles,
-                             origins=origins, directions=directions)
+    slack = None
+    if two_level:
+        slack = tree.transform_slack(origins, directions, ours["t"], ours["instance"])
+        ours = dict(ours, prim=ours["flat_prim"])
+    compare = oracle.compare(ours, theirs, triangles=triangles,
+                             origins=origins, directions=directions, slack=slack)
     return {
+        # What was compared, for the panel.
+        "compared": ("two-level hits (by flattened triangle) vs Embree on the flattened "
+                     "scene" if two_level else "hits vs Embree on the same triangles"),
+        "embree_triangles": len(triangles),
         "available": True,
         "bsplab_seconds": bsplab_seconds,
         "embree_seconds": embree_seconds,
@@ -145,6 +186,14 @@ class TreeRun:
         self.fingerprint_seconds = None
         # The tree rendered with, weakly: its cache owns it (the ray inspector).
         self.tree_ref = None
+        # A two-level press: its mesh trees built and re-used (tree_instanced).
+        self.press = None
+        self._cancelled = False
+        # A two-level press's build fraction: triangles of the mesh trees
+        # to build, those built, and the size of the one building now.
+        self._build_total = None
+        self._build_done = 0
+        self._build_size = 0
 
     def tree(self, triangles, other=None, other_tree=None):
         """The cache's tree when it was built for this input, `other_tree`
@@ -168,18 +217,110 @@ class TreeRun:
             self.cache.keep_tree(self.key, tree, self._generation)
         return tree
 
+    def tree_instanced(self, geometry, other=None, other_tree=None):
+        """The two-level scene of `geometry` (an InstancedGeometry): the
+        cache's when it was built for the same meshes, instances, method and
+        options; else one built from the cache's mesh trees where it holds
+        them (then only the top level and the changed meshes' trees are
+        built). Sets `self.press`: how many mesh trees this press built and
+        re-used, and how long its builds took."""
+        choice = self.choice
+        bsplab = self.bsplab
+        if other is not None and _same_tree(choice, other.choice):
+            self.reused = True
+            self.press = dict(other.press)
+            return other_tree
+        options = dict(choice.options)
+        threads = options.pop("threads", 0)
+        start = time.perf_counter()
+        mesh_keys = [tree_cache.tree_key(mesh, choice.method, choice.options)
+                     for mesh in geometry.meshes]
+        self.key = tree_cache.instanced_key(mesh_keys, geometry.mesh_index, geometry.matrices)
+        self.fingerprint_seconds = time.perf_counter() - start
+        cache = self.cache
+        if cache is not None:
+            scene = cache.tree(self.key)
+            if scene is not None:
+                self.reused = True
+                self.press = dict(getattr(scene, "addon_press", {}), mesh_trees_built=0,
+                                  mesh_trees_reused=len(set(mesh_keys)), top_built=False)
+                return scene
+            # Forgotten before building: two sets of trees are never held.
+            cache.keep_only_mesh_trees(mesh_keys)
+        trees, built, reused, mesh_seconds = {}, 0, 0, 0.0
+        todo = sum(len(mesh) for mesh, key in zip(geometry.meshes, mesh_keys)
+                   if cache is None or cache.mesh_tree(key) is None)
+        self._build_total = max(1, todo)
+        self._build_done = 0
+        for mesh, key in zip(geometry.meshes, mesh_keys):
+            if key in trees:  # two meshes with the same triangles: one tree
+                continue
+            tree = cache.mesh_tree(key) if cache is not None else None
+            if tree is not None:
+                reused += 1
+            else:
+                self._start_build(len(mesh))
+                began = time.perf_counter()
+                tree = bsplab.build(mesh, method=choice.method, progress=self.build_progress,
+                                    **choice.options)
+                mesh_seconds += time.perf_counter() - began
+                self._build_done += len(mesh)
+                built += 1
+                if cache is not None:
+                    # Kept at once: a cancel later in the press keeps it.
+                    cache.keep_mesh_tree(key, tree, self._generation)
+            trees[key] = tree
+        self._start_build(0)
+        self._build_done = self._build_total  # the top level: its own progress
+        began = time.perf_counter()
+        try:
+            scene = bsplab.build_instanced([trees[key] for key in mesh_keys],
+                                           geometry.mesh_index, geometry.matrices,
+                                           choice.method, threads=threads,
+                                           progress=self.build_progress, **options)
+        except ValueError as ex:
+            raise UserError(instance_message(str(ex), geometry)) from ex
+        top_seconds = time.perf_counter() - began
+        self.press = {"mesh_trees_built": built, "mesh_trees_reused": reused, "top_built": True,
+                      "mesh_build_seconds": mesh_seconds, "top_seconds": top_seconds,
+                      "build_seconds": mesh_seconds + top_seconds}
+        # What a later press that re-uses the scene shows as its build.
+        scene.addon_press = dict(self.press)
+        if cache is not None:
+            cache.keep_tree(self.key, scene, self._generation)
+        return scene
+
+    def _start_build(self, triangles):
+        """The next build of a two-level press: `triangles` of the mesh (0:
+        the top level). Raises Cancelled when cancelled between builds."""
+        if self._cancelled:
+            raise self.bsplab.Cancelled("cancelled")
+        self._build_size = triangles
+        self.build_progress.reset()
+        if self._cancelled:  # a cancel that came during the reset
+            raise self.bsplab.Cancelled("cancelled")
+
     def keep_embree(self, tracer):
         self.cache.keep_embree(self.key.geometry, tracer, self._generation)
 
     def cancel(self):
+        self._cancelled = True
         self.build_progress.cancel()
         self.render_progress.cancel()
+
+    def _build_fraction(self):
+        if self._build_total is None:
+            return self.build_progress.value
+        if self._build_size == 0 and self._build_done >= self._build_total:
+            return self.build_progress.value  # the top level (or nothing left)
+        done = self._build_done + self.build_progress.value * self._build_size
+        return min(1.0, done / self._build_total)
 
     def fraction(self):
         if self.reused:
             return self.render_progress.value
         # Building usually dominates; weigh it accordingly.
-        return min(1.0, 0.6 * self.build_progress.value + 0.4 * self.render_progress.value)
+        return min(1.0, 0.6 * self._build_fraction() + 0.4 * self.render_progress.value)
 
 
 def _same_tree(one, other):
@@ -261,9 +402,12 @@ class Job(WorkerJob):
             # A re-used tree's own statistics, build_seconds included: the
             # time of the press that built it.
             "build": dict(tree.stats, reused=run.reused,
-                          fingerprint_seconds=run.fingerprint_seconds),
+                          fingerprint_seconds=run.fingerprint_seconds,
+                          instances_mode=FLATTEN),
             "render": render_stats,
         }
+        if tree_cache.is_two_level(tree):
+            stats["build"] = two_level_stats(tree, run, inp.instanced)
         if inp.compare_with_embree:
             embree_scene = self._embree_scene if self.cache is not None else None
             stats["embree"] = compare_with_embree(self.bsplab, tree, cam, inp, embree_scene)
@@ -283,20 +427,33 @@ class Job(WorkerJob):
         shape = (inp.camera.height, inp.camera.width)
         return {name: np.asarray(hits[name]).reshape(shape) for name in COUNTERS}
 
+    def _tree(self, run, other=None, other_tree=None):
+        inp = self.input
+        if inp.two_level:
+            return run.tree_instanced(inp.instanced, other=other, other_tree=other_tree)
+        return run.tree(inp.triangles, other=other, other_tree=other_tree)
+
     def _compute(self):
         bsplab, inp = self.bsplab, self.input
+        if inp.two_level and self._cull():
+            raise UserError(TWO_LEVEL_CULL_MESSAGE)
         cam = make_camera(bsplab, inp.camera)
         self._check_cancelled()
-        tree = self.a.tree(inp.triangles)
+        tree = self._tree(self.a)
         self.a.tree_ref = weakref.ref(tree)
         self._check_cancelled()
         image, stats = self._render(self.a, tree, cam)
         result = {"image": image}
-        stats = dict({"scene": {"triangles": len(inp.triangles), "objects": inp.objects,
-                                "instances": inp.instances}}, **stats)
+        scene = {"triangles": inp.triangle_count, "objects": inp.objects,
+                 "instances": inp.instances}
+        if inp.two_level:
+            scene["unique_meshes"] = len(inp.instanced.meshes)
+        stats = dict({"scene": scene}, **stats)
         if self.b is not None:
             try:
-                tree_b = self.b.tree(inp.triangles, other=self.a, other_tree=tree)
+                tree_b = self._tree(self.b, other=self.a, other_tree=tree)
+            except UserError as ex:
+                raise UserError("Tree B: {}".format(ex)) from ex
             except (ValueError, TypeError) as ex:
                 # The core's checks of B's options: say it is B's.
                 raise UserError("Tree B cannot be built: {}".format(ex)) from ex
@@ -320,6 +477,49 @@ class Job(WorkerJob):
     def fraction(self):
         runs = self._runs()
         return sum(run.fraction() for run in runs) / len(runs)
+
+
+def two_level_stats(scene, run, geometry):
+    """The Build statistics of a two-level scene: the core's (unique meshes,
+    instances, the top level's nodes and bytes, the mesh trees' nodes and
+    bytes, the flattened scene's triangles), the mesh trees' structure and
+    warnings, and what this press built and re-used."""
+    stats = dict(scene.stats)
+    press = run.press or {}
+    bottom = [tree.stats for tree in scene.meshes]
+    stats.update(
+        instances_mode=TWO_LEVEL, reused=run.reused,
+        fingerprint_seconds=run.fingerprint_seconds,
+        # The press that built the scene: its mesh trees' and top's time
+        # (a re-used scene: that earlier press's).
+        build_seconds=press.get("build_seconds"),
+        top_build_seconds_press=press.get("top_seconds"),
+        mesh_trees_built=press.get("mesh_trees_built"),
+        mesh_trees_reused=press.get("mesh_trees_reused"),
+        top_built=press.get("top_built"),
+        mesh_tree_count=len({id(tree) for tree in scene.meshes}),
+        structure=bottom[0].get("structure") if bottom else None,
+        warnings=["mesh {}: {}".format(name, warning)
+                  for name, s in zip(geometry.mesh_names if geometry else (), bottom)
+                  for warning in s.get("warnings") or ()],
+    )
+    return stats
+
+
+def instance_message(message, geometry):
+    """The core's refusal of an instance ("instance N: its matrix is
+    singular ...") with the instance's object named, for the user."""
+    head, sep, rest = message.partition(": ")
+    words = head.split()
+    if sep and len(words) == 2 and words[0] == "instance" and words[1].isdigit():
+        index = int(words[1])
+        names = geometry.instance_names if geometry is not None else []
+        name = names[index] if index < len(names) else "#{}".format(index)
+        hint = (" (an object scaled to 0 on an axis?): give it a non-zero scale, or choose "
+                "Instances: Flatten") if "singular" in rest else ""
+        return "BSP Lab cannot build the two-level scene: the instance of {}: {}{}".format(
+            name, rest, hint)
+    return "BSP Lab cannot build the two-level scene: {}".format(message)
 
 
 def check_result(result):

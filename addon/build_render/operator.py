@@ -67,15 +67,29 @@ class BSPLAB_OT_build_render(JobOperator, bpy.types.Operator):
             return self._fail("BSP Lab cannot show the preview: {}".format(ex))
         shown_build.record(scene, job, bpy.data.images[preview.IMAGE_NAME])
         stats = job.result["stats"]
-        build = stats["build"]
-        built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")
-                 else "built in {:.3f} s")
-        self.report({'INFO'}, ("BSP Lab: {} triangles, {} nodes, " + built + ", rendered in {:.3f} s")
-                    .format(stats["scene"]["triangles"], build.get("nodes", "?"),
-                            build.get("build_seconds", 0.0),
-                            stats["render"].get("seconds", 0.0))
-                    + b_report(stats))
+        self.report({'INFO'}, build_report(stats) + b_report(stats))
         return {'FINISHED'}
+
+
+def build_report(stats):
+    """The status bar's line of a finished Build & Render (without B's part)."""
+    build = stats["build"]
+    seconds = build.get("build_seconds") or 0.0
+    rendered = ", rendered in {:.3f} s".format(stats["render"].get("seconds", 0.0))
+    if build.get("instances_mode") == "two_level":
+        if build.get("reused"):
+            built = "reused (built in {:.3f} s by an earlier press)".format(seconds)
+        else:
+            built = "built in {:.3f} s: {} mesh trees built, {} reused".format(
+                seconds, build.get("mesh_trees_built", "?"), build.get("mesh_trees_reused", "?"))
+        return ("BSP Lab: two-level, {} instances of {} meshes ({} triangles flattened), "
+                "top level {} nodes, {}{}").format(
+                    build.get("instances", "?"), build.get("meshes", "?"),
+                    stats["scene"]["triangles"], build.get("top_nodes", "?"), built, rendered)
+    built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")
+             else "built in {:.3f} s").format(seconds)
+    return "BSP Lab: {} triangles, {} nodes, {}{}".format(
+        stats["scene"]["triangles"], build.get("nodes", "?"), built, rendered)
 
 
 def b_report(stats):
@@ -83,8 +97,9 @@ def b_report(stats):
     if "b" not in stats:
         return ""
     build = stats["b"]["build"]
+    nodes = build["nodes"] if "nodes" in build else "{} top".format(build.get("top_nodes", "?"))
     return "; B: {} nodes, {}, rendered in {:.3f} s".format(
-        build.get("nodes", "?"), "tree reused" if build.get("reused") else
+        nodes, "tree reused" if build.get("reused") else
         "built in {:.3f} s".format(build.get("build_seconds", 0.0)),
         stats["b"]["render"].get("seconds", 0.0))
 

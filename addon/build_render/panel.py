@@ -32,6 +32,8 @@ class BSPLAB_PT_main(BSPLabPanel, bpy.types.Panel):
             box.label(text="Core module 'bsplab' not installed", icon='ERROR')
 
         layout.prop(settings, "method")
+        row = layout.row()
+        row.prop(settings, "instances", expand=True)
         # Threads are drawn below with the render settings.
         draw_options(layout, settings, settings.method, tree_options.TREE_OPTIONS)
 

@@ -28,6 +28,20 @@ def _mode_enum_items(_self, _context):
 class BSPLabSettings(bpy.types.PropertyGroup):
     method: tree_options.method_property(
         "Tree construction method (from the core's method table)")
+    instances: EnumProperty(
+        name="Instances",
+        description="How objects that share a mesh (linked duplicates, collection and "
+                    "geometry-node instances) are built",
+        items=(
+            ('two_level', "Two-level",
+             "One tree per unique mesh, shared by all its instances, and a BVH over the "
+             "instances: less memory, and a press after moving an instance rebuilds only "
+             "the BVH"),
+            ('flatten', "Flatten",
+             "Every instance's triangles copied into world space, one tree over them all"),
+        ),
+        default='two_level',
+    )
     preview_percentage: IntProperty(
         name="Preview Resolution",
         description="Preview size as a percentage of the scene's render resolution",

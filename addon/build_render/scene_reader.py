@@ -4,7 +4,8 @@ values, so the job itself runs on a worker thread without touching bpy.
 
 The camera and the triangles are read by the `bsplab.blender` readers
 (`scene_camera`, `CameraSpec`, `CameraError`; `scene_triangles`,
-`SceneGeometry`), the one copy that `bsplab.io.load_blend` runs in Blender
+`SceneGeometry` for a flat build, `scene_instances`, `InstancedGeometry`
+for a two-level one), the one copy that `bsplab.io.load_blend` runs in Blender
 too. They are looked up on first use (PEP 562), so the add-on still imports,
 registers and draws when bsplab is missing.
 """
@@ -12,13 +13,14 @@ registers and draws when bsplab is missing.
 import sys
 
 from .. import backend
-from .job import JobInput, TreeChoice, make_camera
+from .job import TWO_LEVEL, TWO_LEVEL_CULL_MESSAGE, JobInput, TreeChoice, make_camera
 from .worker import UserError
 
 # The names this module hands on from bsplab.blender, and from which reader.
 READER_NAMES = {
     "scene_camera": "scene_camera", "CameraSpec": "scene_camera", "CameraError": "scene_camera",
     "scene_triangles": "extract", "SceneGeometry": "extract",
+    "scene_instances": "extract", "InstancedGeometry": "extract",
 }
 
 
@@ -46,10 +48,12 @@ def preview_size(render, preview_percentage):
     return width, height
 
 
-def read_camera_and_geometry(context, bsplab):
-    """The scene camera at the preview size and the visible triangles; raise
-    UserError when either is missing or the camera is outside bsplab's
-    ranges (bsplab.camera.RANGES, wide enough for any usable Blender camera)."""
+def read_camera_and_geometry(context, bsplab, two_level=False):
+    """The scene camera at the preview size and the visible triangles (a
+    SceneGeometry; `two_level`: the InstancedGeometry of the unique meshes
+    and their instances); raise UserError when either is missing or the
+    camera is outside bsplab's ranges (bsplab.camera.RANGES, wide enough
+    for any usable Blender camera)."""
     depsgraph = context.evaluated_depsgraph_get()
     try:
         cam = _reader("scene_camera")(context.scene, depsgraph,
@@ -61,7 +65,7 @@ def read_camera_and_geometry(context, bsplab):
     except (TypeError, ValueError) as ex:
         raise UserError("The scene camera '{}' cannot be previewed: {}".format(
             cam.name, ex)) from ex
-    geometry = _reader("scene_triangles")(depsgraph)
+    geometry = _reader("scene_instances" if two_level else "scene_triangles")(depsgraph)
     if geometry.triangle_count == 0:
         if geometry.instances == 0:
             raise UserError("No visible mesh in the scene: nothing to build a tree from")
@@ -104,9 +108,13 @@ def read_scene(context, bsplab):
     methods = bsplab.methods()
     a = checked_choice(methods, settings)
     b = read_tree_b(scene, methods)
-    cam, geometry = read_camera_and_geometry(context, bsplab)
+    two_level = settings.instances == TWO_LEVEL
+    if two_level and (settings.cull or settings.render_mode == "heat_culled"):
+        raise UserError(TWO_LEVEL_CULL_MESSAGE)
+    cam, geometry = read_camera_and_geometry(context, bsplab, two_level)
     return JobInput(
-        triangles=geometry.triangles,
+        triangles=None if two_level else geometry.triangles,
+        instanced=geometry if two_level else None,
         objects=geometry.objects,
         instances=geometry.instances,
         camera=cam,

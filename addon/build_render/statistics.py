@@ -80,7 +80,10 @@ def embree_rows(embree):
         return []
     if not embree.get("available", False):
         return [("Embree", embree.get("message", "not available"))]
-    rows = [
+    rows = []
+    if embree.get("compared"):
+        rows += _compared_rows(embree)
+    rows += [
         ("Embree Trace", _seconds(embree.get("embree_seconds"))),
         ("BSP Lab Trace", _seconds(embree.get("bsplab_seconds"))),
         ("Time Ratio", "{}x Embree".format(_number(embree.get("time_ratio")))),
@@ -101,6 +104,17 @@ def embree_rows(embree):
     return rows
 
 
+def _compared_rows(embree):
+    """What the Embree comparison compared, short enough for the sidebar: a
+    two-level build's hits against Embree's on the flattened scene, matched
+    by the triangle's index in it."""
+    if str(embree["compared"]).startswith("two-level"):
+        return [("Embree Traced", "flattened scene"),
+                ("Embree Tris", _count(embree.get("embree_triangles"))),
+                ("Hits Matched", "by flat triangle")]
+    return [("Embree Traced", "same triangles")]
+
+
 # What a tree is made of (the build statistics' "structure"), as the panel
 # names it.
 STRUCTURE_NAMES = {"bsp": "split planes", "bvh": "BVH (boxes)"}
@@ -111,13 +125,71 @@ def is_bvh(build):
     return build.get("structure") == "bvh"
 
 
+# The panel's "Instances" choice as the statistics name it.
+INSTANCES_MODE_NAMES = {"two_level": "two-level", "flatten": "flatten"}
+
+
+def is_two_level(build):
+    """Whether the build statistics are a two-level build's."""
+    return build.get("instances_mode") == "two_level"
+
+
+def _mesh_trees(build):
+    """"2 built, 1 reused": what the press did with the mesh trees."""
+    built, reused = build.get("mesh_trees_built"), build.get("mesh_trees_reused")
+    if built is None or reused is None:
+        return "-"
+    return "{} built, {} reused".format(_count(built), _count(reused))
+
+
+def _two_level_tree(build):
+    """The Tree row of a two-level build: "reused" (nothing built), "top
+    rebuilt" (every mesh tree re-used) or "new"."""
+    if "reused" not in build:
+        return "-"
+    if build["reused"]:
+        return "reused"
+    if build.get("mesh_trees_built") == 0:
+        return "top rebuilt"
+    return "new"
+
+
+def two_level_rows(build):
+    """The Build rows of a two-level build: both levels, and what the
+    flattened scene would hold."""
+    structure = STRUCTURE_NAMES.get(build.get("structure"), "-")
+    return [
+        ("Built As", "two-level"),
+        ("Method", str(build.get("method", "-"))),
+        ("Structure", "BVH over {}".format(structure) if structure != "-" else "-"),
+        ("Tree", _two_level_tree(build)),
+        ("Mesh Trees", _mesh_trees(build)),
+        ("Build Time", _seconds(build.get("build_seconds"))),
+        ("Fingerprint", _seconds(build.get("fingerprint_seconds"))),
+        ("Unique Meshes", _count(build.get("meshes"))),
+        ("Instances", _count(build.get("instances"))),
+        ("Top Nodes", _count(build.get("top_nodes"))),
+        ("Top Memory", _bytes(build.get("top_bytes"))),
+        ("Top Depth", _count(build.get("top_depth"))),
+        ("Mesh Nodes", _count(build.get("bottom_nodes"))),
+        ("Mesh Memory", _bytes(build.get("bottom_bytes"))),
+        ("Memory", _bytes(build.get("bytes"))),
+        ("Mesh Tris", _count(build.get("mesh_triangles"))),
+        ("Flattened Tris", _count(build.get("instanced_triangles"))),
+    ]
+
+
 def build_rows(build):
     """The Build section's rows. A BVH has no split planes, no kd or general
     nodes, no empty leaves and no duplicated references (each triangle is in
     one leaf): those rows are a kd or BSP tree's only, and a BVH shows its
-    node layout's bytes instead."""
+    node layout's bytes instead. A two-level build shows both levels
+    (two_level_rows)."""
+    if is_two_level(build):
+        return two_level_rows(build)
     bvh = is_bvh(build)
-    rows = [
+    rows = [("Built As", "flatten")] if build.get("instances_mode") == "flatten" else []
+    rows += [
         ("Method", str(build.get("method", "-"))),
         ("Structure", STRUCTURE_NAMES.get(build.get("structure"), "-")),
         ("Tree", _tree_origin(build)),

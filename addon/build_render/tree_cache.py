@@ -10,7 +10,16 @@ Embree scene of "Compare with Embree" depends on the triangles alone and is
 kept the same way.
 
 One tree at a time: a press with another key forgets the kept tree before
-building, so the old and the new tree are never held together. The add-on
+building, so the old and the new tree are never held together.
+
+A two-level build (bsplab.build_instanced: a tree per unique mesh and a
+BVH over the instances) is kept as one tree too, under an `InstancedKey`
+(every mesh's TreeKey and a digest of the instances' meshes and
+matrices), and its mesh trees are also kept one by one under their own
+TreeKeys: a press after moving, adding or deleting an instance finds
+every mesh tree and builds the top level only; a press after editing one
+mesh builds that mesh's tree only. Before building, the mesh trees this
+press does not need are forgotten (as a flat tree is). The add-on
 clears the cache when a file is loaded and when it is unregistered, so a
 tree of another file is never shown.
 
@@ -64,6 +73,44 @@ def tree_key(triangles, method, options):
     return TreeKey(geometry_digest(triangles), method, kept)
 
 
+def instances_digest(mesh_index, matrices):
+    """Fingerprint of the instances: each one's mesh and matrix (every byte)."""
+    digest = hashlib.sha256()
+    for array in (np.ascontiguousarray(mesh_index, dtype=np.int64),
+                  np.ascontiguousarray(matrices, dtype=np.float64)):
+        digest.update(repr(array.shape).encode())
+        digest.update(memoryview(array).cast("B"))
+    return digest.digest()[:DIGEST_BYTES]
+
+
+@dataclass(frozen=True)
+class InstancedKey:
+    """What a two-level build depends on: its mesh trees' keys (in mesh
+    order) and its instances."""
+
+    meshes: tuple  # a TreeKey per unique mesh
+    instances: bytes  # instances_digest()
+
+    @property
+    def geometry(self):
+        """The digest of the flattened scene's geometry (the Embree scene's
+        key): the meshes' triangles and the instances, not the method."""
+        digest = hashlib.sha256(self.instances)
+        for key in self.meshes:
+            digest.update(key.geometry)
+        return digest.digest()[:DIGEST_BYTES]
+
+
+def instanced_key(mesh_keys, mesh_index, matrices):
+    return InstancedKey(tuple(mesh_keys), instances_digest(mesh_index, matrices))
+
+
+def is_two_level(tree):
+    """Whether `tree` is a two-level build (a bsplab.InstancedTree), told
+    without importing bsplab."""
+    return tree is not None and hasattr(tree, "mesh_index") and hasattr(tree, "flatten")
+
+
 class _Slot:
     """One value under the key it was made for (the cache's lock held)."""
 
@@ -96,6 +143,8 @@ class TreeCache:
         self._generation = 0
         self._tree = _Slot()
         self._embree = _Slot()
+        # The mesh trees of the last two-level build: {TreeKey: Tree}.
+        self._mesh_trees = {}
 
     def generation(self):
         with self._lock:
@@ -103,9 +152,34 @@ class TreeCache:
 
     def tree(self, key):
         """The kept tree if it was built for `key`; else None, and the kept
-        tree is forgotten, so that two trees are never held together."""
+        tree is forgotten, so that two trees are never held together. A flat
+        key (TreeKey) also forgets the mesh trees of a two-level build."""
         with self._lock:
+            if not isinstance(key, InstancedKey):
+                self._mesh_trees = {}
             return self._tree.get(key)
+
+    def keep_only_mesh_trees(self, keys):
+        """Forget the mesh trees whose keys are not in `keys` (before a
+        two-level build that needs only those)."""
+        keys = set(keys)
+        with self._lock:
+            self._mesh_trees = {k: t for k, t in self._mesh_trees.items() if k in keys}
+
+    def mesh_tree(self, key):
+        """The kept mesh tree of `key`, or None."""
+        with self._lock:
+            return self._mesh_trees.get(key)
+
+    def keep_mesh_tree(self, key, tree, generation):
+        with self._lock:
+            if generation == self._generation:
+                self._mesh_trees[key] = tree
+
+    def mesh_tree_count(self):
+        """How many mesh trees are kept: for the tests."""
+        with self._lock:
+            return len(self._mesh_trees)
 
     def kept_tree(self):
         """The kept tree, whatever its key, or None; forgets nothing (the
@@ -136,8 +210,10 @@ class TreeCache:
             self._generation += 1
             self._tree = _Slot()
             self._embree = _Slot()
+            self._mesh_trees = {}
 
     def __len__(self):
-        """How many things are kept (0, 1 or 2): for the tests."""
+        """How many things are kept (0, 1 or 2; a two-level build's mesh
+        trees are counted by mesh_tree_count()): for the tests."""
         with self._lock:
             return (self._tree.value is not None) + (self._embree.value is not None)

@@ -21,7 +21,7 @@ import bpy
 from bpy.props import FloatVectorProperty, IntProperty
 
 from .. import backend
-from ..build_render import preview, shown_build
+from ..build_render import preview, shown_build, tree_cache
 from ..build_render.job import make_camera
 from ..build_render.worker import UserError
 from ..compare import images as compare_images
@@ -49,7 +49,14 @@ def kept_build(context):
     if build.scene_name != context.scene.name:
         raise UserError("The last Build & Render was of scene '{}', not of '{}': press Build & "
                         "Render in this scene first".format(build.scene_name, context.scene.name))
+    if tree_cache.is_two_level(tree) or tree_cache.is_two_level(build.split_b()):
+        raise UserError(TWO_LEVEL_MESSAGE)
     return build, tree
+
+
+# The walk of a two-level build (InstancedTree.trace_path) is not drawn yet.
+TWO_LEVEL_MESSAGE = ("The ray inspector is not available for two-level builds yet: choose "
+                     "Instances: Flatten and press Build & Render to inspect a ray")
 
 
 def check_fresh(context, build):

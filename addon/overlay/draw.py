@@ -21,6 +21,7 @@ import time
 
 import bpy
 
+from ..build_render.tree_cache import is_two_level
 from ..sidebar import tag_redraw_viewports
 from ..state import STATE
 from . import geometry
@@ -29,8 +30,15 @@ DRAW_HANDLER = "overlay"
 
 
 def kept_tree():
-    """The tree the last Build & Render kept, or None."""
-    return STATE.kept_tree()
+    """The tree the last Build & Render kept, or None (also for a two-level
+    build, whose planes and boxes the overlay does not draw yet)."""
+    tree = STATE.kept_tree()
+    return None if is_two_level(tree) else tree
+
+
+def kept_two_level():
+    """Whether the kept tree is a two-level build (the overlay draws nothing)."""
+    return is_two_level(STATE.kept_tree())
 
 
 def redraw_if_tree_changed(context):

@@ -10,6 +10,7 @@ from . import geometry
 KIND_COLOUR_PROPS = (("colour_x", "x"), ("colour_y", "y"), ("colour_z", "z"),
                      ("colour_general", "general"))
 NO_TREE_MESSAGE = "Build & Render first: the overlay draws the last built tree"
+TWO_LEVEL_MESSAGE = "Not available for two-level builds yet (Instances: Flatten draws)"
 
 
 class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
@@ -26,7 +27,9 @@ class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
         layout.use_property_decorate = False
         props = context.scene.bsplab_overlay
         tree = overlay_draw.kept_tree()
-        if tree is None:
+        if overlay_draw.kept_two_level():
+            layout.label(text=TWO_LEVEL_MESSAGE, icon='INFO')
+        elif tree is None:
             layout.label(text=NO_TREE_MESSAGE, icon='INFO')
 
         col = layout.column()

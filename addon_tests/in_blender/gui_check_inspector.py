@@ -105,6 +105,7 @@ def setup():
     for obj in list(scene.objects):
         bpy.data.objects.remove(obj)
     utils.build_test_scene(scene)
+    scene.bsplab.instances = "flatten"  # the inspector walks flat trees only (yet)
     scene.bsplab.preview_percentage = 100
     window, area = area_of('VIEW_3D')
     area.spaces.active.show_region_ui = True

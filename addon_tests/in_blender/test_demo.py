@@ -34,10 +34,18 @@ def png_size(path):
 
 def test_demo_generates_renders_and_prints(core, tmp_path):
     out = tmp_path / "demo.png"
+    # The add-on's default: its instanced collection in two levels.
     result = run_demo("--out", str(out), "--resolution", "160x90", "--mode", "normal")
     assert result.returncode == 0, result.stdout + result.stderr
     assert png_size(out) == (160, 90)
-    for row in ("Triangles", "Build Time", "Nodes", "Tris / Leaf", "Rays/s", "Saved"):
+    for row in ("Triangles", "Built As        two-level", "Build Time", "Unique Meshes",
+                "Top Nodes", "Mesh Nodes", "Flattened Tris", "Rays/s", "Saved"):
+        assert row in result.stdout
+    result = run_demo("--out", str(out), "--resolution", "160x90", "--mode", "normal",
+                      "--instances", "flatten")
+    assert result.returncode == 0, result.stdout + result.stderr
+    for row in ("Triangles", "Built As", "flatten", "Build Time", "Nodes", "Tris / Leaf",
+                "Rays/s", "Saved"):
         assert row in result.stdout
 
 

@@ -38,7 +38,7 @@ def test_world_space_instances_and_exclusions(addon, test_scene):
     assert cube.sum() == utils.SUBDIV_CUBE_TRIANGLES
     # The hidden blocker is the vertical plane y = -6: none of it is there.
     assert not np.any(np.all(np.abs(tris[:, :, 1] + 6.0) < 1e-4, axis=1))
-    # The text object (at z = 3) is not a mesh.
+    # The text object (at z = 3) has no characters: no faces.
     assert tris[:, :, 2].max() <= 2.0 + 1e-5
 
 

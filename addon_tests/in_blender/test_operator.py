@@ -16,7 +16,8 @@ def core_render_of_scene(core, scene, width, height, mode="shaded"):
     triangles = []
     for inst in depsgraph.object_instances:
         obj = inst.object
-        if obj.type != 'MESH' or obj.original.type != 'MESH' or not inst.show_self:
+        # Every evaluated mesh: of mesh objects, curves, text, surfaces, metaballs.
+        if obj.type != 'MESH' or not inst.show_self:
             continue
         matrix = np.array(inst.matrix_world)
         mesh = obj.to_mesh()
@@ -191,7 +192,7 @@ def test_preview_frames_like_blenders_render(addon, core, test_scene, tmp_path):
     scene = test_scene["scene"]
     bpy.data.objects.remove(test_scene["ground"])  # silhouettes need a background
     # What the preview leaves out must not be in the render either: the
-    # viewport-hidden blocker and the text (not a mesh).
+    # viewport-hidden blocker (the text has no characters: nothing to render).
     test_scene["blocker"].hide_render = True
     test_scene["text"].hide_render = True
     scene.render.resolution_x, scene.render.resolution_y = 72, 96

@@ -62,6 +62,7 @@ def main():
     if not hasattr(bpy.types.Scene, "bsplab"):
         addon.register()
     settings = scene.bsplab
+    settings.instances = "flatten"  # the inspector walks flat trees only (yet)
     settings.method, settings.render_mode = args.method, "shaded"
     settings.preview_percentage, settings.compare_with_embree = args.preview, False
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
