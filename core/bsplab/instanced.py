@@ -21,6 +21,9 @@ TOP_COUNTERS = ("top_steps", "instance_visits")
 # an ulp of the object-space origin and direction each, carried back by the
 # matrix - bounded with room to spare.
 TRANSFORM_ULPS = 4.0
+# The top level's crossing bound (instanced_traverse.cpp's kCrossSlack), which
+# trace_path's replay of the walk uses too.
+TOP_CROSS_SLACK = 2.0 ** -21
 TOP_OPTIONS = {"top_bins": 16, "top_traversal_cost": 1.0, "top_intersect_cost": 4.0}
 
 
@@ -163,20 +166,32 @@ class InstancedTree:
         a = self._top()
         o = [float(x) for x in o32]
         d = [float(x) for x in d32]
-        inv = [1.0 / x if x != 0.0 else math.copysign(math.inf, x) for x in d]
+        f32 = np.float32
+        # The core's top-level test (instanced_traverse.cpp's TopRay), in the
+        # same float32 arithmetic, operation by operation.
+        scene_max = f32(np.abs(np.concatenate([a["lo"][0], a["hi"][0]])).max()) \
+            if len(a["lo"]) else f32(0)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            inv = [f32(1) / x for x in d32]
+            err = [f32(0) if d32[k] == 0 else
+                   f32(f32(TOP_CROSS_SLACK) * f32(scene_max + abs(o32[k]))) * abs(inv[k])
+                   for k in range(3)]
+        neg = [bool(np.signbit(x)) for x in d32]
 
         def clip(node, t0, t1):
-            for k in range(3):
-                p = (float(a["lo"][node, k]) - o[k]) * inv[k]
-                q = (float(a["hi"][node, k]) - o[k]) * inv[k]
-                # The core's comparisons (instanced_traverse.cpp's clip).
-                near = p if (p < q or q != q) else q
-                far = p if (p > q or q != q) else q
-                if near > t0:
-                    t0 = near
-                if far < t1:
-                    t1 = far
-            return t0 <= t1, t0, t1
+            """The entry and exit of box `node` within [t0, t1] (float32)."""
+            enter, negexit = f32(t0), f32(-f32(t1))
+            with np.errstate(invalid="ignore", over="ignore"):
+                for k in range(3):
+                    lo, hi = a["lo"][node, k], a["hi"][node, k]
+                    near, far = (hi, lo) if neg[k] else (lo, hi)
+                    tn = f32(f32(f32(near - o32[k]) * inv[k]) - err[k])
+                    tf = f32(f32(f32(far - o32[k]) * f32(-inv[k])) - err[k])
+                    if tn > enter:
+                        enter = tn
+                    if tf > negexit:
+                        negexit = tf
+            return enter <= -negexit, enter, f32(-negexit)
 
         best = {"t": hi32, "prim": -1, "u": np.float32(0), "v": np.float32(0),
                 "instance": -1, "flat": None}
@@ -184,18 +199,18 @@ class InstancedTree:
         top_rows, visits = [], []
         stack = []
         if len(a["lo"]):
-            ok, t0, t1 = clip(0, float(lo32), float(hi32))
+            ok, t0, t1 = clip(0, lo32, hi32)
             if ok:
                 stack.append((0, t0, t1))
         while stack:
             node, t0, t1 = stack.pop()
-            if t0 > float(best["t"]):
+            if t0 > best["t"]:
                 continue
-            top_rows.append((node, t0, t1))
+            top_rows.append((node, float(t0), float(t1)))
             if not a["leaf"][node]:
                 left = int(a["first"][node])
-                ha, a0, a1 = clip(left, float(lo32), float(best["t"]))
-                hb, b0, b1 = clip(left + 1, float(lo32), float(best["t"]))
+                ha, a0, a1 = clip(left, lo32, best["t"])
+                hb, b0, b1 = clip(left + 1, lo32, best["t"])
                 if ha and hb:
                     first = a0 <= b0
                     stack.append((left + 1, b0, b1) if first else (left, a0, a1))

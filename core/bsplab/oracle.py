@@ -153,7 +153,9 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
             directions=None, edge_ulps: float = 8.0, tmin=None, tmax=None, slack=None) -> dict:
     """How far two hit sets agree. A ray agrees when both miss, or both hit
     the same primitive, or both hit at the same distance within rel_tol
-    (two primitives tie at a shared edge or coincide).
+    (two primitives tie at a shared edge or coincide), or - given the
+    triangles - both hit copies of one triangle (the same vertices bit for
+    bit: `duplicates`; coincident instances flatten to such copies).
 
     Given the triangles and rays, a disagreement is further classed as
     `grazing` when the ray passes within edge_ulps single-precision ulps (of
@@ -176,7 +178,21 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
     same_prim = both_hit & (pa == pb)
     with np.errstate(invalid="ignore"):
         close_t = both_hit & (np.abs(ta - tb) <= rel_tol * np.maximum(np.abs(tb), 1e-30))
-    agree = both_miss | same_prim | close_t
+    # Two indices of one triangle (a duplicate: the same three vertices, bit
+    # for bit, in any order - coincident instances flatten to such copies)
+    # are one surface: either is the right answer, whatever each side's
+    # rounding of t on it.
+    same_surface = np.zeros(len(pa), bool)
+    if triangles is not None:
+        rows = np.flatnonzero(both_hit & ~same_prim & ~close_t)
+        if len(rows):
+            tri = np.ascontiguousarray(triangles, np.float32)
+
+            def vertex_sets(p):  # each triangle's vertices as bytes, sorted
+                v = np.ascontiguousarray(tri[p]).view(np.dtype((np.void, 12))).reshape(-1, 3)
+                return np.sort(v, axis=1)
+            same_surface[rows] = (vertex_sets(pa[rows]) == vertex_sets(pb[rows])).all(axis=1)
+    agree = both_miss | same_prim | close_t | same_surface
     bad = np.flatnonzero(~agree)
     grazing = np.zeros(len(bad), bool)
     at_ends = np.zeros(len(bad), bool)
@@ -232,9 +248,10 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
         "agreement": float(agree.mean()) if n else 1.0,
         "same_prim": int(same_prim.sum()),
         "ties": int((close_t & ~same_prim).sum()),
+        "duplicates": int(same_surface.sum()),
         "hit_only_ours": int(((pa >= 0) & (pb < 0)).sum()),
         "hit_only_ref": int(((pa < 0) & (pb >= 0)).sum()),
-        "different": int((both_hit & ~same_prim & ~close_t).sum()),
+        "different": int((both_hit & ~same_prim & ~close_t & ~same_surface).sum()),
         "grazing": int(grazing.sum()),
         "at_ends": int(at_ends.sum()),
         "degenerate": int(degenerate.sum()),

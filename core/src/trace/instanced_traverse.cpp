@@ -9,6 +9,9 @@
 #include <limits>
 #include <stdexcept>
 
+#include <emmintrin.h>
+#include <xmmintrin.h>
+
 #include "instanced.hpp"
 #include "parallel.hpp"
 #include "trace/cpu_dispatch.hpp"
@@ -29,20 +32,68 @@ TraceRange bottom_kernel(const Tree& tree, bool counting) {
                                             : k.single_ray[counting][int(LeafBoxes::None)];
 }
 
-// The ray's range [t0, t1] in box b, within [t0, t1] on entry. A NaN
-// crossing (an origin in a face plane, the ray parallel to it) is ignored:
-// the comparisons below are false for it and keep t0 / t1 - what fmax and
-// fmin do, without their library calls.
-inline bool clip(const Box& b, const double o[3], const double inv[3], double& t0, double& t1) {
-    for (int k = 0; k < 3; ++k) {
-        const double a = (double(b.lo[k]) - o[k]) * inv[k], c = (double(b.hi[k]) - o[k]) * inv[k];
-        // min and max of the two, the other where one is NaN (fmin, fmax).
-        const double near = (a < c || c != c) ? a : c, far = (a > c || c != c) ? a : c;
-        if (near > t0) t0 = near;
-        if (far < t1) t1 = far;
+// The top level's box test, both children of a node at once in SSE: per
+// axis the lanes (A near, B near, A far, B far) - the near face the high one
+// where d < 0 - their crossings (x - o) / d in float, the far lanes negated,
+// so that one MAXPS per axis gives both entries and both (negated) exits.
+// Float is conservative here with a per-ray bound: a crossing's rounding is
+// at most three of 2^-24 of |x - o| |1/d| <= (the scene's largest coordinate
+// + |o|) |1/d|, and every crossing is widened by 2^-21 of that (kCrossSlack),
+// so a box's range holds the exact ray's range in it; the boxes are padded
+// besides (instanced_build.cpp). A NaN crossing (an origin in a face plane,
+// the ray parallel to it) loses the max and is ignored. trace_path
+// (bsplab/instanced.py) replays exactly this arithmetic.
+constexpr float kCrossSlack = 1.0f / (1 << 21);
+
+struct TopRay {
+    __m128 org[3], sidir[3], err[3], swap[3];
+    float o[3], inv[3], e[3];
+    bool neg[3];
+
+    TopRay(const float* of, const float* df, float scene_max) {
+        for (int k = 0; k < 3; ++k) {
+            o[k] = of[k];
+            inv[k] = 1.0f / df[k];
+            e[k] = df[k] == 0.0f ? 0.0f : kCrossSlack * (scene_max + std::fabs(of[k])) * std::fabs(inv[k]);
+            neg[k] = std::signbit(df[k]);
+            org[k] = _mm_set1_ps(o[k]);
+            sidir[k] = _mm_setr_ps(inv[k], inv[k], -inv[k], -inv[k]);
+            err[k] = _mm_set1_ps(e[k]);
+            swap[k] = _mm_castsi128_ps(_mm_set1_epi32(neg[k] ? -1 : 0));
+        }
     }
-    return t0 <= t1;
-}
+
+    // Lanes 0, 1: the entries of the children A, B within [s0, s1]; lanes
+    // 2, 3: their exits, negated.
+    void pair(const BvhNode* children, float s0, float s1, float out[4]) const {
+        const float* f = reinterpret_cast<const float*>(children);
+        __m128 x = _mm_load_ps(f), y = _mm_load_ps(f + 8);      // A.lo, B.lo
+        __m128 z = _mm_load_ps(f + 4), w = _mm_load_ps(f + 12);  // A.hi, B.hi
+        _MM_TRANSPOSE4_PS(x, y, z, w);  // x = (A.lo.x, B.lo.x, A.hi.x, B.hi.x), ...
+        __m128 acc = _mm_setr_ps(s0, s0, -s1, -s1);
+        const __m128 axes[3] = {x, y, z};
+        for (int k = 0; k < 3; ++k) {
+            const __m128 v = axes[k];
+            const __m128 swapped = _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2));
+            const __m128 c = _mm_or_ps(_mm_and_ps(swap[k], swapped), _mm_andnot_ps(swap[k], v));
+            const __m128 t = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(c, org[k]), sidir[k]), err[k]);
+            acc = _mm_max_ps(t, acc);
+        }
+        _mm_storeu_ps(out, acc);
+    }
+
+    // One box (the root): the same arithmetic, lane by lane.
+    bool clip(const Box& b, float& t0, float& t1) const {
+        for (int k = 0; k < 3; ++k) {
+            const float nearf = neg[k] ? b.hi[k] : b.lo[k], farf = neg[k] ? b.lo[k] : b.hi[k];
+            const float tn = (nearf - o[k]) * inv[k] - e[k];
+            const float tf = (farf - o[k]) * -inv[k] - e[k];
+            if (tn > t0) t0 = tn;
+            if (tf > -t1) t1 = -tf;
+        }
+        return t0 <= t1;
+    }
+};
 
 struct Bottom {
     TraceRange trace;
@@ -62,6 +113,11 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
     bottom.reserve(scene.meshes.size());
     for (const Tree* t : scene.meshes) bottom.push_back({bottom_kernel(*t, counting), make_tree_view(*t)});
     const BvhNode* nodes = scene.top_nodes.data();
+    // The scene's largest coordinate: the top level's crossing bound (TopRay).
+    float scene_max = 0.0f;
+    if (!scene.top_nodes.empty())
+        for (int k = 0; k < 3; ++k)
+            scene_max = std::max({scene_max, std::fabs(nodes[0].lo[k]), std::fabs(nodes[0].hi[k])});
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     constexpr size_t kChunk = 256;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
@@ -72,7 +128,7 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
             const float tmin = rays.tmin[i * rays.tmin_stride];
             const float tmax = rays.tmax[i * rays.tmax_stride];
             const double o[3] = {of[0], of[1], of[2]}, d[3] = {df[0], df[1], df[2]};
-            const double inv[3] = {1.0 / d[0], 1.0 / d[1], 1.0 / d[2]};
+            const TopRay ray(of, df, scene_max);
             float best_t = tmax, best_u = 0, best_v = 0;
             int32_t best_prim = -1, best_instance = -1;
             uint64_t best_flat = std::numeric_limits<uint64_t>::max();
@@ -80,24 +136,25 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                      box_tests = 0;
             struct Entry {
                 uint32_t node;
-                double t0;
+                float t0;
             } stack[kTopStack];
             int top = 0;
-            double t0 = tmin, t1 = tmax;
-            if (!scene.top_nodes.empty() && clip(nodes[0].box(), o, inv, t0, t1))
+            float t0 = tmin, t1 = tmax;
+            if (!scene.top_nodes.empty() && ray.clip(nodes[0].box(), t0, t1))
                 stack[top++] = {0, t0};
             while (top > 0) {
                 const Entry e = stack[--top];
                 // A box entered beyond the closest hit holds nothing closer
                 // (equal t stays: the tie rule decides between instances).
-                if (e.t0 > double(best_t)) continue;
+                if (e.t0 > best_t) continue;
                 const BvhNode& n = nodes[e.node];
                 ++top_steps;
                 if (!n.is_leaf()) {
                     const uint32_t l = n.left();
-                    double a0 = tmin, a1 = best_t, b0 = tmin, b1 = best_t;
-                    const bool ha = clip(nodes[l].box(), o, inv, a0, a1);
-                    const bool hb = clip(nodes[l + 1].box(), o, inv, b0, b1);
+                    float lanes[4];
+                    ray.pair(nodes + l, tmin, best_t, lanes);
+                    const float a0 = lanes[0], b0 = lanes[1];
+                    const bool ha = a0 <= -lanes[2], hb = b0 <= -lanes[3];
                     // The nearer on top of the stack.
                     if (ha && hb) {
                         const bool a_first = a0 <= b0;
