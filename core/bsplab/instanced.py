@@ -221,10 +221,14 @@ class InstancedTree:
             for k in range(int(a["count"][node])):
                 inst = int(a["order"][int(a["first"][node]) + k])
                 m = a["object_from_world"][inst]
-                ob = np.array([m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2]
-                               + m[4 * r + 3] for r in range(3)], np.float64).astype(np.float32)
-                db = np.array([m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2]
-                               for r in range(3)], np.float64).astype(np.float32)
+                ob64 = np.array([m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2]
+                                 + m[4 * r + 3] for r in range(3)], np.float64)
+                db64 = np.array([m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2]
+                                 for r in range(3)], np.float64)
+                big = np.finfo(np.float32).max
+                if (np.abs(ob64) > big).any() or (np.abs(db64) > big).any():
+                    continue  # no float ray in object space (the core skips it too)
+                ob, db = ob64.astype(np.float32), db64.astype(np.float32)
                 if not db.any():
                     continue
                 limit = hi32 if best["prim"] < 0 else np.nextafter(best["t"], np.float32(np.inf))

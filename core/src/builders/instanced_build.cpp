@@ -2,6 +2,7 @@
 // matrix checked and inverted, its mesh tree's box carried to the world, and
 // a binned-SAH BVH over those boxes (build_bvh, the mesh BVH's builder).
 #include <algorithm>
+#include <cfloat>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -70,6 +71,9 @@ Box world_box(const Box& object, double scale, const double* m) {
     }
     double mag = 0;
     for (int r = 0; r < 3; ++r) mag = std::max({mag, std::fabs(lo[r]), std::fabs(hi[r])});
+    if (!(mag <= 0.5 * double(FLT_MAX)))  // the caller names the instance
+        throw std::range_error("its matrix carries the mesh beyond float's range (a coordinate of " +
+                               std::to_string(mag) + ")");
     const double pad = kBoxPadRel * mag + 1e-30;
     Box b;
     for (int r = 0; r < 3; ++r) {
@@ -111,7 +115,11 @@ InstancedScene build_instanced(std::vector<const Tree*> meshes,
         scene.flat_offset[i] = flat;
         flat += tree.triangles.size();
         if (tree.bounds.empty()) continue;  // no live triangle: nothing to hit
-        boxes.push_back(world_box(tree.bounds, tree.scale, world_from_object));
+        try {
+            boxes.push_back(world_box(tree.bounds, tree.scale, world_from_object));
+        } catch (const std::range_error& e) {
+            throw std::invalid_argument(instance_name(i) + ": " + e.what());
+        }
         const Box& b = boxes.back();
         centroids.push_back(Vec3(0.5f * (b.lo.x + b.hi.x), 0.5f * (b.lo.y + b.hi.y),
                                  0.5f * (b.lo.z + b.hi.z)));

@@ -5,6 +5,7 @@
 // by that tree's own kernel (the selected instruction set's, as intersect()
 // would), its segment cut at the closest hit so far.
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -170,11 +171,18 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                     const Instance& inst = scene.instances[id];
                     const double* m = inst.object_from_world;
                     float ob[3], db[3];
+                    bool representable = true;
                     for (int r = 0; r < 3; ++r) {
-                        ob[r] = float(m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2] +
-                                      m[4 * r + 3]);
-                        db[r] = float(m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2]);
+                        const double x = m[4 * r] * o[0] + m[4 * r + 1] * o[1] +
+                                         m[4 * r + 2] * o[2] + m[4 * r + 3];
+                        const double y = m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2];
+                        // Beyond float's range in object space (a ray from
+                        // 10^38 units away to a small mesh): no float ray there.
+                        representable &= std::fabs(x) <= double(FLT_MAX) && std::fabs(y) <= double(FLT_MAX);
+                        ob[r] = representable ? float(x) : 0.0f;
+                        db[r] = representable ? float(y) : 0.0f;
                     }
+                    if (!representable) continue;
                     if (db[0] == 0.0f && db[1] == 0.0f && db[2] == 0.0f) continue;  // underflow
                     ++visits;
                     // Beyond the closest hit by one ulp, so that a hit at the

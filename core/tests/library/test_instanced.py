@@ -272,3 +272,21 @@ def test_an_instances_own_tree_is_drawn_in_place():
     # The root's corners span the instance's triangles (an oriented box).
     assert (tri.reshape(-1, 3).min(axis=0) >= root.min(axis=0) - 1e-4).all()
     assert (tri.reshape(-1, 3).max(axis=0) <= root.max(axis=0) + 1e-4).all()
+
+
+def test_a_ray_beyond_float_range_in_object_space_is_no_error():
+    tiny = instanced_scenes.affine(np.eye(3) * 1e-30, (0, 0, 0))
+    it = bsplab.build_instanced([instanced_scenes.cube()], [0, 0],
+                                np.array([tiny, instanced_scenes.affine(np.eye(3), (5, 0, 0))]))
+    o = np.array([[3e38, 0.5, 0.5], [5.5, 0.5, 10]], np.float32)
+    d = np.array([[-1, 0, 0], [0, 0, -1]], np.float32)
+    h = it.intersect(o, d)
+    assert h["instance"][1] == 1 and h["t"][1] == 9.0
+    p = it.trace_path(o[0], d[0])
+    assert p["instance"] == h["instance"][0]
+
+
+def test_a_matrix_beyond_float_range_is_refused():
+    huge = instanced_scenes.affine(np.eye(3) * 1e39, (0, 0, 0))
+    with pytest.raises(ValueError, match="instance 0: its matrix carries the mesh beyond float"):
+        bsplab.build_instanced([instanced_scenes.cube()], [0], huge[None])
