@@ -335,17 +335,23 @@ class InstancedTree:
         if not len(hit):
             return out
         if self._normal_matrices is None:
-            self._normal_matrices = np.linalg.inv(self.matrices[:, :, :3]).transpose(0, 2, 1)
-        n = np.zeros((len(hit), 3))
-        for mesh in np.unique(self.mesh_index[inst[hit]]):
-            rows = hit[self.mesh_index[inst[hit]] == mesh]
-            tri = self.meshes[mesh].triangles[prim[rows]].astype(np.float64)
-            n[np.searchsorted(hit, rows)] = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            # A^-T from the core's inverse, times the sign of det A: a mirror
+            # turns the winding, so the flattened triangle's normal is then
+            # the opposite of the carried one. Once per scene, per instance.
+            inv = self._top()["object_from_world"].reshape(-1, 3, 4)[:, :, :3]
+            m = self.matrices[:, :, :3]
+            det = (m[:, 0, 0] * (m[:, 1, 1] * m[:, 2, 2] - m[:, 1, 2] * m[:, 2, 1])
+                   - m[:, 0, 1] * (m[:, 1, 0] * m[:, 2, 2] - m[:, 1, 2] * m[:, 2, 0])
+                   + m[:, 0, 2] * (m[:, 1, 0] * m[:, 2, 1] - m[:, 1, 1] * m[:, 2, 0]))
+            self._normal_matrices = (inv.transpose(0, 2, 1)
+                                     * np.sign(det)[:, None, None]).astype(np.float32)
+        n = np.zeros((len(hit), 3), np.float32)
+        meshes = self.mesh_index[inst[hit]]
+        for mesh in np.unique(meshes):
+            rows = np.flatnonzero(meshes == mesh)
+            n[rows] = self.meshes[mesh].face_normals()[prim[hit[rows]]]
         w = np.einsum("nij,nj->ni", self._normal_matrices[inst[hit]], n)
-        # det < 0 (a mirror) turns the winding: the flattened triangle's
-        # normal is then the opposite of the carried one.
-        w *= np.sign(np.linalg.det(self.matrices[inst[hit], :, :3]))[:, None]
-        out[hit] = w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-300)
+        out[hit] = w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-30)
         return out
 
     def flatten(self) -> np.ndarray:

@@ -32,6 +32,7 @@ class Tree:
         self._tree = core_tree
         self.method = method
         self.options = dict(options)
+        self._face_normals = None
 
     @property
     def structure(self) -> str:
@@ -61,6 +62,15 @@ class Tree:
         s["method"] = self.method
         s.update({f"option_{k}": v for k, v in self.options.items()})
         return s
+
+    def face_normals(self) -> np.ndarray:
+        """(N, 3) float32 (v1 - v0) x (v2 - v0) of the triangles, in input
+        units, not normalised; computed once (an instanced scene's renders
+        carry them to the world for every instance of the mesh)."""
+        if self._face_normals is None:
+            t = self.triangles
+            self._face_normals = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]).astype(np.float32)
+        return self._face_normals
 
     def node_bytes(self) -> bytes:
         """The raw node array; equal bytes mean an identical tree."""
