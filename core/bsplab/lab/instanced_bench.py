@@ -114,8 +114,8 @@ def world_rows(world: str, methods: list[str], side: int, rays: int, rounds: int
     return rows
 
 
-def _f(x, fmt):
-    return "—" if x is None else format(x, fmt)
+def _f(x, fmt, unit=""):
+    return "—" if x is None else format(x, fmt) + unit
 
 
 def markdown(rows: list[dict], command: str) -> str:
@@ -146,10 +146,10 @@ def markdown(rows: list[dict], command: str) -> str:
             f"{r['instanced_triangles']:,} | {r['two_level_build_s']:.3f} s | "
             f"{r['top_build_s'] * 1e3:.1f} ms | {r['bottom_bytes'] / mib:.1f} | "
             f"{r['top_bytes_per_instance']:.0f} | {r['bottom_peak_bytes'] / mib:.1f} | "
-            f"{_f(r['flat_build_s'], '.2f')} s | "
+            f"{_f(r['flat_build_s'], '.2f', ' s')} | "
             f"{_f(r['flat_bytes'] and r['flat_bytes'] / mib, '.1f')} | "
             f"{_f(r['flat_peak_bytes'] and r['flat_peak_bytes'] / mib, '.1f')} | "
-            f"{_f(r['embree_build_s'], '.2f')} s |")
+            f"{_f(r['embree_build_s'], '.2f', ' s')} |")
     for work in ("primary", "random"):
         lines += [
             "",
