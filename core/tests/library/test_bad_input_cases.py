@@ -446,7 +446,7 @@ CASES = [
               "unknown spec key(s) colour; known keys: name, scenes, methods, ks, method_ks, "
               "seeds, repetitions, workloads, width, height, ao_samples, ao_distance, options, "
               "build_threads, executor, workers, scheduler, variants, method_variants, "
-              "random_rays, cull, hits_only"),
+              "random_rays, cull, hits_only, instances"),
 ]
 
 # The one case that reaches the network stack: a scheduler address nobody
