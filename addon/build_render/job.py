@@ -247,6 +247,12 @@ class TreeRun:
                 return scene
             # Forgotten before building: two sets of trees are never held.
             cache.keep_only_mesh_trees(mesh_keys)
+        # A singular or non-finite instance matrix is refused now, with its
+        # object named, rather than after the mesh trees' builds.
+        try:
+            bsplab.check_instance_matrices(geometry.matrices)
+        except ValueError as ex:
+            raise UserError(instance_message(str(ex), geometry)) from ex
         trees, built, reused, mesh_seconds = {}, 0, 0, 0.0
         todo = sum(len(mesh) for mesh, key in zip(geometry.meshes, mesh_keys)
                    if cache is None or cache.mesh_tree(key) is None)

@@ -184,11 +184,14 @@ def test_identical_meshes_share_one_tree(transformed):
 def test_a_singular_instance_is_named_in_the_message(transformed):
     bad = dataclasses.replace(transformed, matrices=transformed.matrices.copy())
     bad.matrices[7, :, 2] = 0.0  # scale 0 along z
-    job = run(job_input(bad, camera_of(transformed)), tree_cache.TreeCache())
+    cache = tree_cache.TreeCache()
+    job = run(job_input(bad, camera_of(transformed)), cache)
     assert isinstance(job.error, worker.UserError), job.error
     message = worker.error_message(bsplab, job.error)
     assert "'Object 7'" in message and "singular" in message
     assert "Instances: Flatten" in message
+    # Refused before the long part: no mesh tree was built for it.
+    assert cache.mesh_tree_count() == 0
 
 
 def test_culling_is_refused_for_two_level_builds(transformed):

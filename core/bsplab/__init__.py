@@ -10,9 +10,9 @@ from .method_table import methods, option_schema
 from .progress import Progress
 from .render import RENDER_MODES, render
 from .tree import Tree, build
-from .instanced import InstancedTree, build_instanced
+from .instanced import InstancedTree, build_instanced, check_instance_matrices
 
 __version__ = "0.1.0"
 __all__ = ["Camera", "Cancelled", "InstancedTree", "Progress", "RENDER_MODES", "Tree", "build",
-           "build_instanced",
+           "build_instanced", "check_instance_matrices",
            "check_triangles", "cpu_features", "methods", "option_schema", "oracle", "render", "_core"]

@@ -129,6 +129,15 @@ def cmd_cull(args) -> int:
                                  repeats=args.repeats)
 
 
+def _write_page(text: str, out: Path | None) -> None:
+    """A benchmark page: printed, and written to `out` when given."""
+    print(text)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+        print(f"written {out}")
+
+
 def cmd_build_bench(args) -> int:
     from bsplab.lab import build_bench
     out = output_file(args.out, "--out", "build_benchmark.md") if args.out else None
@@ -139,11 +148,7 @@ def cmd_build_bench(args) -> int:
                          f"is here (the shared scenes folder: {build_bench.shared_folder()}); "
                          "name generated scenes or mesh files with --scenes")
     text = build_bench.build_markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
-    print(text)
-    if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text)
-        print(f"written {out}")
+    _write_page(text, out)
     return 0
 
 
@@ -153,11 +158,7 @@ def cmd_instanced_bench(args) -> int:
     rows = instanced_bench.bench_instanced(args.worlds, args.methods, side=args.side,
                                            rays=args.rays, rounds=args.repeats)
     text = instanced_bench.markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
-    print(text)
-    if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text)
-        print(f"written {out}")
+    _write_page(text, out)
     return 0
 
 

@@ -189,6 +189,22 @@ def choice(value, name: str, allowed: tuple[str, ...]) -> str:
     return value
 
 
+def trace_flags(cull, counters, packets) -> tuple[bool, bool, bool]:
+    """The trace's switches, as intersect() takes them (Tree's and
+    InstancedTree's): each True or False, and packets only on the hits-only
+    path without culling (a packet's rays share one walk, so there are no
+    per-ray counters or per-leaf segment boxes to give)."""
+    for name, value in (("cull", cull), ("counters", counters), ("packets", packets)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise TypeError(f"{name} must be True or False, got {value!r}")
+    if packets and counters:
+        raise ValueError("packets=True traces hits only: the counters are per-ray "
+                         "single-ray quantities; pass counters=False")
+    if packets and cull:
+        raise ValueError("packets=True traces without leaf culling; pass cull=False")
+    return bool(cull), bool(counters), bool(packets)
+
+
 def threads(value) -> int:
     from .method_table import OPTIONS
     return option(OPTIONS["threads"], value, None)

@@ -27,7 +27,7 @@ TOP_CROSS_SLACK = 2.0 ** -21
 TOP_OPTIONS = {"top_bins": 16, "top_traversal_cost": 1.0, "top_intersect_cost": 4.0}
 
 
-def _matrices(value, n: int) -> np.ndarray:
+def _matrices(value, n: int | None) -> np.ndarray:
     """(n, 3, 4) float64 world-from-object matrices; (n, 4, 4) ones must end
     in the row 0 0 0 1 (affine)."""
     try:
@@ -36,7 +36,7 @@ def _matrices(value, n: int) -> np.ndarray:
         raise TypeError("matrices must be an array of shape (M, 3, 4) or (M, 4, 4)") from None
     if m.ndim != 3 or m.shape[1:] not in ((3, 4), (4, 4)):
         raise ValueError(f"matrices must have shape (M, 3, 4) or (M, 4, 4), got {m.shape}")
-    if len(m) != n:
+    if n is not None and len(m) != n:
         raise ValueError(f"matrices has {len(m)} rows but mesh_index {n}: one matrix per instance")
     if m.shape[1] == 4:
         last = m[:, 3, :]
@@ -65,6 +65,8 @@ class InstancedTree:
         self.top_options = dict(top_options)
         self._normal_matrices = None
         self._top_arrays = None
+        self._bounds = None
+        self._bottom_stats = None
         sizes = np.array([len(t.triangles) for t in self.meshes], np.int64)
         # Where each instance's triangles start in the flattened scene.
         self.flat_offsets = np.concatenate([[0], np.cumsum(sizes[mesh_index])[:-1]]).astype(np.int64) \
@@ -73,7 +75,9 @@ class InstancedTree:
     @property
     def stats(self) -> dict:
         s = self._scene.stats()
-        bottom = [t.stats for t in self.meshes]
+        if self._bottom_stats is None:  # the mesh trees do not change: read them once
+            self._bottom_stats = [t.stats for t in self.meshes]
+        bottom = self._bottom_stats
         s["method"] = self.method
         s["bottom_bytes"] = int(sum(b["bytes"] for b in bottom))
         s["bottom_nodes"] = int(sum(b["nodes"] for b in bottom))
@@ -269,24 +273,29 @@ class InstancedTree:
 
     def instance_at(self, point):
         """The instance whose mesh tree's box holds the world point (e.g.
-        the 3D cursor) - of several, the smallest box's - or None."""
+        the 3D cursor) - of several, the smallest box's - or None. All
+        instances at once (the overlay asks on every redraw): the point
+        carried into each object space by the core's inverses."""
         p = np.asarray(point, np.float64).reshape(3)
-        boxes = self.top_boxes()
-        best, volume = None, np.inf
-        for lo, hi, insts in zip(boxes["lo"], boxes["hi"], boxes["instances"]):
-            if not len(insts) or (p < lo).any() or (p > hi).any():
-                continue
-            for i in insts:
-                tree = self.meshes[self.mesh_index[i]]
-                m = self.matrices[i]
-                q = np.linalg.solve(m[:, :3], p - m[:, 3])
-                blo, bhi = (np.asarray(c, np.float64) for c in tree.bounds)
-                if (q >= blo).all() and (q <= bhi).all():
-                    v = float(np.prod(np.maximum(bhi - blo, 1e-30)) *
-                              abs(np.linalg.det(m[:, :3])))
-                    if v < volume:
-                        best, volume = int(i), v
-        return best
+        if not len(self.mesh_index):
+            return None
+        inv = self._top()["object_from_world"].reshape(-1, 3, 4)
+        q = inv[:, :, :3] @ p + inv[:, :, 3]
+        lo, hi = (np.asarray(b, np.float64)[self.mesh_index] for b in self._mesh_bounds())
+        inside = np.flatnonzero(((q >= lo) & (q <= hi)).all(axis=1))
+        if not len(inside):
+            return None
+        volume = (np.prod(np.maximum(hi[inside] - lo[inside], 1e-30), axis=1)
+                  * np.abs(np.linalg.det(self.matrices[inside][:, :, :3])))
+        return int(inside[np.argmin(volume)])
+
+    def _mesh_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each mesh tree's box in object space: (meshes, 3) lo and hi."""
+        if self._bounds is None:
+            b = [tuple(np.asarray(c, np.float64) for c in t.bounds) for t in self.meshes]
+            self._bounds = (np.array([x[0] for x in b]).reshape(-1, 3),
+                            np.array([x[1] for x in b]).reshape(-1, 3))
+        return self._bounds
 
     def instance_split_polygons(self, instance, max_depth: int, **kwargs) -> dict:
         """`instance`'s mesh tree's split_polygons, in world units: the
@@ -370,14 +379,10 @@ class InstancedTree:
         `packets=True` gives the same hits, traced one ray at a time (as a
         BVH's packets are); leaf culling (`cull=True`) is not offered in two
         levels."""
-        for name, value in (("cull", cull), ("counters", counters), ("packets", packets)):
-            if not isinstance(value, (bool, np.bool_)):
-                raise TypeError(f"{name} must be True or False, got {value!r}")
+        cull, counters, packets = checks.trace_flags(cull, counters, packets)
         if cull:
             raise ValueError("cull=True: leaf culling is not offered for instanced scenes "
                              "(trace their flattened scene to cull)")
-        if packets and counters:
-            raise ValueError("packets=True traces hits only: pass counters=False")
         o, d = checks.rays(origins, directions)
         n = len(o)
         lo, hi = checks.ray_ranges(tmin, tmax, n)
@@ -402,6 +407,18 @@ class InstancedTree:
                 f"{s['instances']} instances, {s['instanced_triangles']} instanced triangles>")
 
 
+def check_instance_matrices(matrices) -> np.ndarray:
+    """The instances' world-from-object matrices, (M, 3, 4) or (M, 4, 4)
+    affine, checked as build_instanced checks them - shape, finite, not
+    singular (the core's rule: |det A| > 1e-12 |A|^3) - without building
+    anything: a caller that builds the mesh trees itself (the add-on) learns
+    of a bad instance before the long part. Returns them as (M, 3, 4)
+    float64; raises ValueError naming the first bad instance."""
+    m = _matrices(matrices, None)
+    _core.check_instance_matrices(m)
+    return m
+
+
 def build_instanced(meshes, mesh_index, matrices, method: str = "kd", *, top: str = "bvh",
                     threads=0, progress=None, **options) -> InstancedTree:
     """An instanced scene: `meshes` a list of (N, 3, 3) triangle arrays (or
@@ -422,6 +439,7 @@ def build_instanced(meshes, mesh_index, matrices, method: str = "kd", *, top: st
                          f"({len(meshes)} meshes)")
     idx = np.ascontiguousarray(idx, dtype=np.uint32)
     m = _matrices(matrices, len(idx))
+    _core.check_instance_matrices(m)  # before the mesh trees: a bad instance fails at once
     top_opts = dict(TOP_OPTIONS)
     for k in list(options):
         if k in TOP_OPTIONS:

@@ -91,14 +91,7 @@ class Tree:
         rays together, as many as `cpu_features()["packet_width"]`: the same
         hits again, bit for bit, and faster when consecutive rays are coherent
         (camera rays in tile order: `Camera.rays(w, h, order="tiles")`)."""
-        for name, value in (("cull", cull), ("counters", counters), ("packets", packets)):
-            if not isinstance(value, (bool, np.bool_)):
-                raise TypeError(f"{name} must be True or False, got {value!r}")
-        if packets and counters:
-            raise ValueError("packets=True traces hits only: the counters are per-ray "
-                             "single-ray quantities; pass counters=False")
-        if packets and cull:
-            raise ValueError("packets=True traces without leaf culling; pass cull=False")
+        cull, counters, packets = checks.trace_flags(cull, counters, packets)
         o, d = checks.rays(origins, directions)
         n = len(o)
         lo, hi = checks.ray_ranges(tmin, tmax, n)
@@ -113,7 +106,7 @@ class Tree:
             out.update({name: np.empty(n, np.uint32) for name in COUNTERS})
         _core.intersect(self._tree, o, d, lo, hi, out["t"], out["prim"], out["u"], out["v"],
                         *(out.get(name) for name in COUNTERS),
-                        checks.threads(threads), bool(cull), progress, bool(packets))
+                        checks.threads(threads), cull, progress, packets)
         return out
 
     def split_polygons(self, max_depth: int, root=None, max_polygons: int = DRAWABLE) -> dict:

@@ -66,6 +66,11 @@ struct TopLevelSettings {
     int threads = 0;
 };
 
+// The matrices' own check, before any tree is built (build_instanced makes
+// it again): throws std::invalid_argument naming the first instance whose
+// matrix is non-finite or singular (instances x 12 numbers, row-major).
+void check_instance_matrices(const std::vector<double>& matrices);
+
 // Throws std::invalid_argument naming the instance for a mesh index out of
 // range, a non-finite or singular matrix.
 InstancedScene build_instanced(std::vector<const Tree*> meshes,

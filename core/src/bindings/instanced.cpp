@@ -12,6 +12,7 @@
 
 #include "bindings/arrays.hpp"
 #include "bindings/bindings.hpp"
+#include "bindings/ray_batches.hpp"
 #include "instanced.hpp"
 
 namespace bsp::bindings {
@@ -23,7 +24,6 @@ namespace {
 
 using MatrixArray = nb::ndarray<const double, nb::shape<-1, 3, 4>, nb::c_contig, nb::device::cpu>;
 using IndexArray = nb::ndarray<const uint32_t, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
-using Counter = std::optional<Out<uint32_t>>;
 
 InstancedScene build(const std::vector<const Tree*>& meshes, IndexArray mesh_index,
                      MatrixArray matrices, int bins, float traversal_cost, float intersect_cost,
@@ -47,37 +47,12 @@ void intersect(const InstancedScene& scene, Vec3Array origins, Vec3Array directi
                Out<float> v, Out<int32_t> instance, Counter steps, Counter general_steps,
                Counter tests, Counter culled, Counter box_tests, Counter top_steps,
                Counter instance_visits, int threads, Progress* progress) {
-    const size_t n = origins.shape(0);
-    auto check = [n](size_t m, const char* what) {
-        if (m != n) throw std::invalid_argument(std::string(what) + " has the wrong length");
-    };
-    auto counter = [&](Counter& c, const char* what) -> uint32_t* {
-        if (!c) return nullptr;
-        check(c->shape(0), what);
-        return c->data();
-    };
-    check(directions.shape(0), "directions");
-    check(t.shape(0), "t");
-    check(prim.shape(0), "prim");
-    check(u.shape(0), "u");
-    check(v.shape(0), "v");
-    check(instance.shape(0), "instance");
-    if (tmin.shape(0) != 1) check(tmin.shape(0), "tmin");
-    if (tmax.shape(0) != 1) check(tmax.shape(0), "tmax");
-    RayBatch rays;
-    rays.origins = origins.data();
-    rays.directions = directions.data();
-    rays.tmin = tmin.data();
-    rays.tmax = tmax.data();
-    rays.tmin_stride = tmin.shape(0) == 1 ? 0 : 1;
-    rays.tmax_stride = tmax.shape(0) == 1 ? 0 : 1;
-    rays.count = n;
-    HitBatch hits{t.data(), prim.data(), u.data(), v.data(),
-                  counter(steps, "steps"), counter(general_steps, "general_steps"),
-                  counter(tests, "tests"), counter(culled, "culled"),
-                  counter(box_tests, "box_tests")};
-    InstanceHits extra{instance.data(), counter(top_steps, "top_steps"),
-                       counter(instance_visits, "instance_visits")};
+    const RayBatch rays = ray_batch(origins, directions, tmin, tmax);
+    HitBatch hits = hit_batch(rays.count, t, prim, u, v, steps, general_steps, tests, culled,
+                              box_tests);
+    check_length(rays.count, instance.shape(0), "instance");
+    InstanceHits extra{instance.data(), counter_column(rays.count, top_steps, "top_steps"),
+                       counter_column(rays.count, instance_visits, "instance_visits")};
     nb::gil_scoped_release release;
     intersect_instanced(scene, rays, hits, extra, threads, progress);
 }
@@ -136,6 +111,13 @@ void bind_instanced(nb::module_& m) {
     nb::class_<InstancedScene>(m, "InstancedScene")
         .def("stats", &stats)
         .def("top_arrays", &top_arrays, "The top level's nodes and the instances' inverses.");
+    m.def(
+        "check_instance_matrices",
+        [](MatrixArray matrices) {
+            check_instance_matrices(std::vector<double>(
+                matrices.data(), matrices.data() + 12 * matrices.shape(0)));
+        },
+        "matrices"_a, "Throws naming the first non-finite or singular instance matrix.");
     m.def("build_instanced", &build, "meshes"_a, "mesh_index"_a, "matrices"_a, "bins"_a,
           "traversal_cost"_a, "intersect_cost"_a, "threads"_a, "progress"_a.none(),
           "The top level over instances of the mesh trees (the caller keeps them alive).");

@@ -13,6 +13,7 @@
 
 #include "bindings/arrays.hpp"
 #include "bindings/bindings.hpp"
+#include "bindings/ray_batches.hpp"
 #include "inspect/tree_geometry.hpp"  // world_plane
 #include "trace/cpu_dispatch.hpp"
 #include "trace/trace_path.hpp"
@@ -25,8 +26,6 @@ using namespace nb::literals;
 
 namespace {
 
-using Counter = std::optional<Out<uint32_t>>;
-
 // The counter arrays are all given (the counting path) or all None (the
 // hits-only path); the core rejects a mix.
 void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatIn tmin,
@@ -36,39 +35,9 @@ void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatI
                bool cull, Progress* progress, bool packets) {
     if (packets && cull)
         throw std::invalid_argument("intersect: packets trace without culling (use cull=False)");
-    const size_t n = origins.shape(0);
-    auto check = [n](size_t m, const char* what) {
-        if (m != n) throw std::invalid_argument(std::string(what) + " has the wrong length");
-    };
-    auto counter = [&](Counter& c, const char* what) -> uint32_t* {
-        if (!c) return nullptr;
-        check(c->shape(0), what);
-        return c->data();
-    };
-    check(directions.shape(0), "directions");
-    check(t.shape(0), "t");
-    check(prim.shape(0), "prim");
-    check(u.shape(0), "u");
-    check(v.shape(0), "v");
-    if (tmin.shape(0) != 1) check(tmin.shape(0), "tmin");
-    if (tmax.shape(0) != 1) check(tmax.shape(0), "tmax");
-    RayBatch rays;
-    rays.origins = origins.data();
-    rays.directions = directions.data();
-    rays.tmin = tmin.data();
-    rays.tmax = tmax.data();
-    rays.tmin_stride = tmin.shape(0) == 1 ? 0 : 1;
-    rays.tmax_stride = tmax.shape(0) == 1 ? 0 : 1;
-    rays.count = n;
-    HitBatch hits{t.data(),
-                  prim.data(),
-                  u.data(),
-                  v.data(),
-                  counter(steps, "steps"),
-                  counter(general_steps, "general_steps"),
-                  counter(tests, "tests"),
-                  counter(culled, "culled"),
-                  counter(box_tests, "box_tests")};
+    const RayBatch rays = ray_batch(origins, directions, tmin, tmax);
+    HitBatch hits = hit_batch(rays.count, t, prim, u, v, steps, general_steps, tests, culled,
+                              box_tests);
     nb::gil_scoped_release release;
     if (packets)
         intersect_packets(tree, rays, hits, threads, progress);

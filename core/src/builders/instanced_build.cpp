@@ -85,6 +85,13 @@ Box world_box(const Box& object, double scale, const double* m) {
 
 }  // namespace
 
+void check_instance_matrices(const std::vector<double>& matrices) {
+    if (matrices.size() % 12 != 0)
+        throw std::invalid_argument("check_instance_matrices: 3 x 4 matrices, 12 numbers each");
+    double inverse[12];
+    for (size_t i = 0; i < matrices.size() / 12; ++i) invert(matrices.data() + 12 * i, inverse, i);
+}
+
 InstancedScene build_instanced(std::vector<const Tree*> meshes,
                                const std::vector<uint32_t>& mesh_index,
                                const std::vector<double>& matrices,

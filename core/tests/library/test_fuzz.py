@@ -62,33 +62,40 @@ scene_specs = st.fixed_dictionaries({
 })
 
 
+def method_options(case: dict) -> dict:
+    """The case's k, clamped to its method's range, for methods that take one."""
+    info = METHODS[case["method"]]
+    if "k" not in info["params"]:
+        return {}
+    return {"k": min(max(case["k"], info["min_k"]), info["max_k"])}
+
+
+def assert_none(rays, what: str, label: str, case: dict, o, d, ours: dict, ref: dict) -> None:
+    """Fails when `rays` (indices) is not empty, naming the scene and three
+    of the rays with both answers."""
+    e = np.asarray(rays, dtype=np.int64)[:3]
+    assert len(rays) == 0, (
+        f"{label}: {len(rays)} {what}; scene {json.dumps(case)}; e.g. o {o[e].tolist()} "
+        f"d {d[e].tolist()}: ours {ours['prim'][e]} t {ours['t'][e]}, Embree {ref['prim'][e]} "
+        f"t {ref['t'][e]}")
+
+
 def check_spec(case: dict) -> None:
     tris = fuzz.build_scene(case["parts"], case["scale_exp"], case["offset"])
     n2 = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     if not np.any(np.abs(n2.astype(np.float64)).sum(axis=1) > 0):
         return  # nothing that can be hit: build() refuses scenes without triangles
-    method = case["method"]
-    info = METHODS[method]
-    opts = {}
-    if "k" in info["params"]:
-        opts["k"] = min(max(case["k"], info["min_k"]), info["max_k"])
+    method, opts = case["method"], method_options(case)
     tree = bsplab.build(tris, method=method, **opts)
     rays = agreement.FamilyRays(tris, RAYS_PER_FAMILY, seed=len(tris))
     for name, c in rays.check(tree).items():
-        bad = c["unexplained"][:3]
-        h, o, d = c["hits"], rays.rays[name][0], rays.rays[name][1]
-        ref = rays.rays[name][3]
-        assert len(c["unexplained"]) == 0, (
-            f"{method} {opts}: {len(c['unexplained'])} {name} rays disagree with Embree; "
-            f"scene {json.dumps(case)}; e.g. o {o[bad].tolist()} d {d[bad].tolist()}: ours "
-            f"{h['prim'][bad]} t {h['t'][bad]}, Embree {ref['prim'][bad]} t {ref['t'][bad]}")
+        o, d, _, ref = rays.rays[name]
+        label = f"{method} {opts}"
+        assert_none(c["unexplained"], f"{name} rays disagree with Embree", label, case, o, d,
+                    c["hits"], ref)
         # A leak - a miss or a farther hit where Embree hits (oracle.leaks) -
         # is wrong even when the double-precision tie-break could explain it.
-        leak = c["leaks"][:3]
-        assert len(c["leaks"]) == 0, (
-            f"{method} {opts}: {len(c['leaks'])} {name} rays leak; scene {json.dumps(case)}; "
-            f"e.g. o {o[leak].tolist()} d {d[leak].tolist()}: ours {h['prim'][leak]} t "
-            f"{h['t'][leak]}, Embree {ref['prim'][leak]} t {ref['t'][leak]}")
+        assert_none(c["leaks"], f"{name} rays leak", label, case, o, d, c["hits"], ref)
 
 
 @settings(max_examples=20_000 if LONG else 150, deadline=None, derandomize=not LONG,
@@ -155,11 +162,7 @@ def check_instanced_spec(case: dict) -> None:
                                          .astype(np.float64)).sum(axis=1) > 0).any()]
     if len(live) < len(meshes) or not len(idx):
         return  # a mesh without a hittable triangle: build() refuses it
-    method = case["method"]
-    info = METHODS[method]
-    opts = {}
-    if "k" in info["params"]:
-        opts["k"] = min(max(case["k"], info["min_k"]), info["max_k"])
+    method, opts = case["method"], method_options(case)
     it = bsplab.build_instanced(meshes, idx, mats, method, **opts)
     flat = it.flatten()
     rays = agreement.FamilyRays(flat, RAYS_PER_FAMILY // 2, seed=len(flat))
@@ -170,17 +173,13 @@ def check_instanced_spec(case: dict) -> None:
                            it.transform_slack(o, d, ref["t"], it.instance_of(ref["prim"])))
         c = oracle.compare(ours, ref, triangles=flat, origins=o, directions=d, tmax=tmax,
                            slack=slack)
-        bad = c["unexplained"][:3]
-        assert len(c["unexplained"]) == 0, (
-            f"{method} {opts}: {len(c['unexplained'])} {name} rays disagree with Embree; "
-            f"scene {json.dumps(case)}; e.g. o {o[bad].tolist()} d {d[bad].tolist()}: ours "
-            f"{ours['prim'][bad]} t {ours['t'][bad]}, Embree {ref['prim'][bad]} t {ref['t'][bad]}")
+        label = f"{method} {opts}"
+        assert_none(c["unexplained"], f"{name} rays disagree with Embree", label, case, o, d,
+                    ours, ref)
         if name in agreement.CROSSING_FAMILIES:
             leak = oracle.leaks(ours, ref, triangles=flat, origins=o, directions=d, tmax=tmax,
                                 slack=slack)
-            assert len(leak) == 0, (
-                f"{method} {opts}: {len(leak)} {name} rays leak; scene {json.dumps(case)}; "
-                f"e.g. o {o[leak[:3]].tolist()} d {d[leak[:3]].tolist()}")
+            assert_none(leak, f"{name} rays leak", label, case, o, d, ours, ref)
 
 
 @settings(max_examples=20_000 if LONG else 40, deadline=None, derandomize=not LONG,

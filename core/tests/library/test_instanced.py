@@ -138,6 +138,33 @@ def test_bad_matrices_are_refused_by_instance(matrix, message):
     good = np.eye(4)[:matrix.shape[0]] if matrix.shape[0] == 4 else np.eye(4)[:3]
     with pytest.raises(ValueError, match=message):
         bsplab.build_instanced([cube], [0, 0], np.array([good, matrix]), "kd")
+    # The same refusal from the check alone (what the add-on asks before it
+    # builds the mesh trees itself).
+    with pytest.raises(ValueError, match=message):
+        bsplab.check_instance_matrices(np.array([good, matrix]))
+
+
+def test_the_matrix_check_is_the_builds_and_builds_nothing():
+    m = np.array([np.eye(4), np.diag([2.0, -1.0, 1e-3, 1.0])])
+    checked = bsplab.check_instance_matrices(m)
+    assert checked.shape == (2, 3, 4) and checked.dtype == np.float64
+    assert np.array_equal(checked, m[:, :3, :])
+    # Near the core's limit (|det A| > 1e-12 |A|^3): just above passes, below fails.
+    ok = np.diag([1.0, 1.0, 2e-12, 1.0])[:3]
+    bad = np.diag([1.0, 1.0, 0.5e-12, 1.0])[:3]
+    bsplab.check_instance_matrices([ok])
+    with pytest.raises(ValueError, match="instance 0: its matrix is singular"):
+        bsplab.check_instance_matrices([bad])
+    # A singular instance fails the build before any mesh tree is built:
+    # the progress of the mesh builds never moves.
+    progress = bsplab.Progress()
+    with pytest.raises(ValueError, match="instance 1: its matrix is singular"):
+        bsplab.build_instanced([instanced_scenes.uv_sphere()], [0, 0],
+                               np.array([np.eye(4)[:3], bad]), "kd", progress=progress)
+    assert progress.value == 0.0
+    bsplab.build_instanced([instanced_scenes.uv_sphere()], [0, 0],
+                           np.array([np.eye(4)[:3], ok]), "kd", progress=progress)
+    assert progress.value > 0.0
 
 
 @pytest.mark.parametrize("kwargs, error, message", [
