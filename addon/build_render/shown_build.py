@@ -45,6 +45,11 @@ class ShownBuild:
     image_size: tuple  # the preview image block's (width, height), colour bar included
     changes: int  # STATE.scene_changes when the job read the scene
     visible: int  # state.visible_objects() then
+    # A two-level build's names, for the overlay and the inspector to say
+    # which instance they show: per instance its object ("'Prop Cube' in
+    # 'Grid 1 1'"), per unique mesh its object's name; empty for a flat build.
+    instance_names: tuple = ()
+    mesh_names: tuple = ()
 
     def tree(self):
         return self.tree_ref()
@@ -76,9 +81,32 @@ def record(scene, job, image):
         triangles=inp.triangles, camera=inp.camera,
         cull=bool(inp.cull or inp.mode == "heat_culled"), scene_name=scene.name,
         image_size=tuple(image.size),
-        changes=job.scene_mark[0], visible=job.scene_mark[1])
+        changes=job.scene_mark[0], visible=job.scene_mark[1],
+        instance_names=tuple(inp.instanced.instance_names) if inp.instanced else (),
+        mesh_names=tuple(inp.instanced.mesh_names) if inp.instanced else ())
+
+
+def names_of(tree):
+    """(instance names, mesh names) of the shown build when `tree` is its
+    tree (A or split B: the same scene's instances), else ((), ())."""
+    build = STATE.shown_build
+    if build is None or tree is None or (build.tree() is not tree and build.split_b() is not tree):
+        return (), ()
+    return build.instance_names, build.mesh_names
 
 
 def is_stale(build, view_layer):
     """Whether the scene may have changed since `build` read it."""
     return (build.changes, build.visible) != state.scene_mark(view_layer)
+
+
+def instance_text(instance, mesh, names=None):
+    """How the panel names an instance: "instance 4 'Grid 1 1' (mesh 'Prop
+    Cube')" with the names of the build (shown_build's), else by numbers."""
+    instance_names, mesh_names = names or ((), ())
+    text = "instance {}".format(instance)
+    if 0 <= instance < len(instance_names):
+        text += " {}".format(instance_names[instance])
+    if 0 <= mesh < len(mesh_names):
+        return text + " (mesh '{}')".format(mesh_names[mesh])
+    return text + (" (mesh {})".format(mesh) if mesh >= 0 else "")

@@ -23,7 +23,14 @@ def corners(lo, hi):
 def wireframe(lo, hi):
     """(8B, 3) positions and (12B, 2) uint32 indices of B boxes' edges: a
     "LINES" batch (indexed), box b's corners at rows 8b .. 8b + 7."""
-    positions = corners(lo, hi).reshape(-1, 3)
+    return corner_wireframe(corners(lo, hi))
+
+
+def corner_wireframe(box_corners):
+    """wireframe() of B boxes given by their (B, 8, 3) corners in CORNER_BITS
+    order: an instance's box carried to the world by a rotation or a shear
+    is no longer axis-aligned, but its edges still join the same corners."""
+    positions = np.ascontiguousarray(np.asarray(box_corners, np.float32).reshape(-1, 3))
     base = (np.arange(len(positions) // 8, dtype=np.uint32) * 8)[:, None, None]
     return positions, (EDGES[None] + base).reshape(-1, 2).astype(np.uint32)
 
@@ -31,4 +38,10 @@ def wireframe(lo, hi):
 def segments(lo, hi):
     """(24B, 3) float32 line-list vertices of B boxes' edges (a "LINES"
     batch without indices): box b's 12 edges at rows 24b .. 24b + 23."""
-    return corners(lo, hi)[:, EDGES.reshape(-1)].reshape(-1, 3)
+    return corner_segments(corners(lo, hi))
+
+
+def corner_segments(box_corners):
+    """segments() of B boxes given by their (B, 8, 3) corners (CORNER_BITS order)."""
+    c = np.asarray(box_corners, np.float32).reshape(-1, 8, 3)
+    return c[:, EDGES.reshape(-1)].reshape(-1, 3)

@@ -27,7 +27,7 @@ from ..build_render.worker import UserError
 from ..compare import images as compare_images
 from ..sidebar import tag_redraw_viewports
 from ..state import STATE
-from . import draw, trace
+from . import draw, trace, two_level
 
 PICK_HINT = ("BSP Lab: click a pixel of the preview (Image Editor) or a point in the "
              "3D Viewport; Esc or right-click cancels")
@@ -49,14 +49,7 @@ def kept_build(context):
     if build.scene_name != context.scene.name:
         raise UserError("The last Build & Render was of scene '{}', not of '{}': press Build & "
                         "Render in this scene first".format(build.scene_name, context.scene.name))
-    if tree_cache.is_two_level(tree) or tree_cache.is_two_level(build.split_b()):
-        raise UserError(TWO_LEVEL_MESSAGE)
     return build, tree
-
-
-# The walk of a two-level build (InstancedTree.trace_path) is not drawn yet.
-TWO_LEVEL_MESSAGE = ("The ray inspector is not available for two-level builds yet: choose "
-                     "Instances: Flatten and press Build & Render to inspect a ray")
 
 
 def check_fresh(context, build):
@@ -75,8 +68,14 @@ def kept_tree(context):
 
 def run_inspection(context, build, tree, origin, direction, source, start):
     """Trace, keep the result and its drawing; return the inspection."""
-    inspection = trace.inspect(tree, origin, direction, build.cull, source)
-    data = draw.draw_data(tree, build.triangles, inspection)
+    if tree_cache.is_two_level(tree):
+        # Both levels' walk (InstancedTree.trace_path); no culling in two levels.
+        inspection = two_level.inspect(tree, origin, direction, source,
+                                       shown_build.names_of(tree))
+        data = two_level.draw_data(tree, inspection)
+    else:
+        inspection = trace.inspect(tree, origin, direction, build.cull, source)
+        data = draw.draw_data(tree, build.triangles, inspection)
     inspection["draw"] = data
     # Click to panel ready: what the panel shows and time_inspector.py prints.
     inspection["seconds"] = time.perf_counter() - start

@@ -1,9 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The "Ray Inspector" sub-panel: the pick and clear buttons, the inspected
-ray's counts and its step-by-step list."""
+ray's counts and its step-by-step list (of a two-level build: the top
+level's steps, then each instance entered and the steps inside it)."""
 
 import bpy
 
+from ..build_render import shown_build
 from ..sidebar import BSPLabSubPanel
 from ..state import STATE
 from .operators import BSPLAB_OT_inspect_clear, BSPLAB_OT_inspect_pick
@@ -18,6 +20,8 @@ STEP_HEADER = ("#", "node", "t range", "tests")
 
 def count_rows(inspection):
     """(label, text) of the inspection's totals."""
+    if inspection.get("structure") == "two_level":
+        return two_level_count_rows(inspection)
     totals = inspection["counts"]
     if inspection["missed_box"]:
         hit = "none: missed the tree box"
@@ -36,6 +40,73 @@ def count_rows(inspection):
         ("Hit", hit),
         ("Time", "{:.1f} ms".format(1000 * inspection["seconds"])),
     ]
+
+
+def two_level_count_rows(inspection):
+    """count_rows() of a two-level walk: the top level's steps, the
+    instances entered, the steps inside them (summed) and the hit's
+    instance."""
+    totals = inspection["counts"]
+    if inspection["missed_box"]:
+        hit = "none: missed the scene's box"
+    elif totals["hit_prim"] is None:
+        hit = "none"
+    else:
+        hit = "{} at t {:.4g}".format(totals["hit_prim"], totals["hit_t"])
+    top_leaves = sum(1 for row in inspection["top_rows"] if row[1] == "leaf")
+    rows = [
+        ("Ray", inspection["source"]),
+        ("Top Steps", "{} ({} leaves)".format(totals["top_steps"], top_leaves)),
+        ("Instances", "{} entered".format(totals["instance_visits"])),
+        ("Steps", "{} ({} leaves)".format(totals["steps"], totals["leaves"])),
+        ("Box Tests", str(totals["box_tests"])) if inspection.get("mesh_structure") == "bvh"
+        else ("General", str(totals["general_steps"])),
+        ("Tests", str(totals["tests"])),
+        ("Hit", hit),
+    ]
+    if totals["hit_instance"] is not None:
+        rows.append(("In", instance_text(inspection, totals["hit_instance"],
+                                         totals["hit_mesh"])))
+    rows.append(("Time", "{:.1f} ms".format(1000 * inspection["seconds"])))
+    return rows
+
+
+def instance_text(inspection, instance, mesh):
+    """An instance as the panel names it (with the build's names)."""
+    return shown_build.instance_text(instance, -1 if mesh is None else mesh,
+                                     inspection.get("names"))
+
+
+# The top level's step list: its nodes are boxes; a leaf lists its instances.
+TOP_HEADER = ("#", "top node", "t range", "inst.")
+
+
+def top_step_cells(row):
+    """The texts of one top-level step (two_level.top_rows)."""
+    number, kind, t0, t1, instances = row
+    return (str(number), kind, "{:.3g}-{:.3g}".format(t0, t1),
+            ",".join(str(i) for i in instances))
+
+
+def two_level_sections(inspection, limit=MAX_ROWS):
+    """The two-level step lists as (title, header, rows of texts) sections:
+    the top level's, then one per instance entered; at most `limit` rows in
+    all, and how many more."""
+    sections, left, more = [], limit, 0
+    groups = [("Top level", TOP_HEADER, [top_step_cells(r) for r in inspection["top_rows"]])]
+    for visit in inspection["visits"]:
+        text = instance_text(inspection, visit["instance"], visit["mesh"])
+        title = text[0].upper() + text[1:]
+        groups.append((title + (" - hit" if visit["hit"] else ""), STEP_HEADER,
+                       [step_cells(r) for r in visit["rows"]]))
+    for title, header, rows in groups:
+        if left <= 0:
+            more += len(rows)
+            continue
+        sections.append((title, header, rows[:left]))
+        more += max(0, len(rows) - left)
+        left -= len(rows)
+    return sections, more
 
 
 def step_cells(row):
@@ -81,6 +152,9 @@ class BSPLAB_PT_inspector(BSPLabSubPanel, bpy.types.Panel):
             split = col.split(factor=0.3)
             split.label(text=label)
             split.label(text=text)
+        if inspection.get("structure") == "two_level":
+            draw_two_level_steps(layout, inspection)
+            return
         lines, more = step_lines(inspection)
         box = layout.box()
         col = box.column(align=True)
@@ -88,6 +162,20 @@ class BSPLAB_PT_inspector(BSPLabSubPanel, bpy.types.Panel):
             draw_step(col, cells)
         if more:
             col.label(text="... {} more steps".format(more))
+
+
+def draw_two_level_steps(layout, inspection):
+    """The top level's steps, then each instance entered with its steps."""
+    sections, more = two_level_sections(inspection)
+    col = None
+    for title, header, rows in sections:
+        box = layout.box()
+        col = box.column(align=True)
+        col.label(text=title)
+        for cells in [header] + rows:
+            draw_step(col, cells)
+    if more and col is not None:
+        col.label(text="... {} more steps".format(more))
 
 
 classes = (BSPLAB_PT_inspector,)

@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The tree overlay in the 3D Viewport: the kept tree's split planes, drawn
 translucent and clipped to their cells, and its cells as wireframes; a
-BVH's node boxes as wireframes coloured by depth.
+BVH's node boxes as wireframes coloured by depth; for a two-level build,
+the top level's boxes and the instance under the 3D cursor's own tree in
+place (two_level.py).
 
 A `SpaceView3D` draw handler ('WINDOW', 'POST_VIEW': world space, under the
 viewport's own depth buffer) is added while the panel's "Tree Overlay" box
@@ -30,14 +32,14 @@ DRAW_HANDLER = "overlay"
 
 
 def kept_tree():
-    """The tree the last Build & Render kept, or None (also for a two-level
-    build, whose planes and boxes the overlay does not draw yet)."""
-    tree = STATE.kept_tree()
-    return None if is_two_level(tree) else tree
+    """The tree the last Build & Render kept (a bsplab.Tree, or a
+    bsplab.InstancedTree for a two-level build), or None."""
+    return STATE.kept_tree()
 
 
 def kept_two_level():
-    """Whether the kept tree is a two-level build (the overlay draws nothing)."""
+    """Whether the kept tree is a two-level build: the overlay draws its top
+    level's boxes and the instance under the 3D cursor (two_level.py)."""
     return is_two_level(STATE.kept_tree())
 
 

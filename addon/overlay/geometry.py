@@ -285,9 +285,15 @@ class GeometryCache:
         if tree is None:
             self.clear()
             return None
-        key = (settings, tuple(cursor) if settings.scope == "cursor" and cursor else None)
+        # A two-level build draws the instance under the cursor whatever the
+        # scope: the cursor is part of its key always.
+        from . import two_level
+        instanced = two_level.is_two_level(tree)
+        follows_cursor = settings.scope == "cursor" or instanced
+        key = (settings, tuple(cursor) if follows_cursor and cursor else None)
         if self._tree() is not tree or key != self._key:
-            self._geometry = overlay_geometry(tree, settings, cursor)
+            make = two_level.two_level_geometry if instanced else overlay_geometry
+            self._geometry = make(tree, settings, cursor)
             self._tree, self._key = weakref.ref(tree), key
             self.builds += 1
         return self._geometry

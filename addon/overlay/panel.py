@@ -3,6 +3,7 @@
 
 import bpy
 
+from ..build_render import shown_build
 from ..sidebar import BSPLabFeaturePanel, draw_toggle
 from . import draw as overlay_draw
 from . import geometry
@@ -10,7 +11,8 @@ from . import geometry
 KIND_COLOUR_PROPS = (("colour_x", "x"), ("colour_y", "y"), ("colour_z", "z"),
                      ("colour_general", "general"))
 NO_TREE_MESSAGE = "Build & Render first: the overlay draws the last built tree"
-TWO_LEVEL_MESSAGE = "Not available for two-level builds yet (Instances: Flatten draws)"
+# A two-level build: what is drawn, said once above the settings.
+TWO_LEVEL_NOTE = "Two-level: top-level boxes, and the instance under the 3D cursor in place"
 
 
 class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
@@ -27,8 +29,9 @@ class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
         layout.use_property_decorate = False
         props = context.scene.bsplab_overlay
         tree = overlay_draw.kept_tree()
-        if overlay_draw.kept_two_level():
-            layout.label(text=TWO_LEVEL_MESSAGE, icon='INFO')
+        instanced = overlay_draw.kept_two_level()
+        if instanced:
+            layout.label(text=TWO_LEVEL_NOTE, icon='INFO')
         elif tree is None:
             layout.label(text=NO_TREE_MESSAGE, icon='INFO')
 
@@ -38,7 +41,9 @@ class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
         col.prop(props, "scope")
         if props.scope == "cursor":
             col.prop(props, "subtree_depth")
-        if geometry.is_bvh(tree):
+        # Of a two-level build, the instances' mesh trees decide (all of one method).
+        drawn_tree = tree.meshes[0] if instanced and tree.meshes else tree
+        if geometry.is_bvh(drawn_tree):
             # Boxes by depth: a BVH has no kinds to colour and no cells.
             col.label(text="BVH: boxes, depth 0 orange \u2192 {} blue".format(props.max_depth))
         else:
@@ -49,7 +54,18 @@ class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
         col.prop(props, "cap")
 
         if props.show and tree is not None:
-            draw_notes(layout, overlay_draw.current_geometry(context.scene))
+            arrays = overlay_draw.current_geometry(context.scene)
+            if instanced:
+                draw_instance(layout, arrays, shown_build.names_of(tree))
+            draw_notes(layout, arrays)
+
+
+def draw_instance(layout, arrays, names):
+    """Which instance a two-level overlay draws in place, by name when the
+    build's names are known (none under the cursor: the notes say so)."""
+    if arrays.get("instance") is not None:
+        layout.label(text="In place: " + shown_build.instance_text(
+            arrays["instance"], arrays["mesh"], names), icon='OUTLINER_OB_GROUP_INSTANCE')
 
 
 def draw_legend(layout, props):

@@ -359,7 +359,7 @@ def test_counting_the_builds(addon, core, instanced_scene, monkeypatch):
 
 
 # -----------------------------------------------------------------------------
-# Embree, the features that draw flat trees only, errors
+# Embree, the inspector and the overlay, errors
 
 
 def test_embree_traces_the_flattened_scene(addon, core, instanced_scene):
@@ -376,17 +376,19 @@ def test_embree_traces_the_flattened_scene(addon, core, instanced_scene):
     assert press(scene)["embree"]["embree_reused"] is True
 
 
-def test_inspector_and_overlay_say_two_level_is_not_available(addon, core, instanced_scene):
+def test_inspector_and_overlay_work_on_a_two_level_build(addon, core, instanced_scene):
+    # What they show is test_two_level_views.py's; here only that a
+    # two-level press no longer turns them away.
     scene = instanced_scene["scene"]
     press(scene)
-    with pytest.raises(RuntimeError, match="not available for two-level builds"):
-        bpy.ops.bsplab.inspect_ray(origin=(0, -13, 7), direction=(0, 1, -0.4))
+    assert bpy.ops.bsplab.inspect_ray(origin=(0, -13, 7), direction=(0, 1, -0.4)) == {'FINISHED'}
+    assert addon.state.STATE.inspection["structure"] == "two_level"
     overlay = addon.overlay
     scene.bsplab_overlay.show = True
     try:
         texts = [text for kind, text in draw(overlay.panel.BSPLAB_PT_overlay) if kind == "label"]
-        assert overlay.panel.TWO_LEVEL_MESSAGE in texts
-        assert overlay.draw.current_geometry(scene) is None
+        assert overlay.panel.TWO_LEVEL_NOTE in texts
+        assert overlay.draw.current_geometry(scene)["top_boxes"] > 0
     finally:
         scene.bsplab_overlay.show = False
 
