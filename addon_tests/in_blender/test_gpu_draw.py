@@ -115,3 +115,59 @@ def test_inspector_draws_the_hit_where_the_preview_pixel_is(addon, core, test_sc
     assert np.allclose(centre, hit_rgb, atol=COLOUR_TOLERANCE), (centre, hit_rgb, gpu_context)
     # Around it, the tested triangles and the cells are drawn too.
     assert np.count_nonzero(pixels[..., 3] > 0) > addon.inspector.draw.HIT_POINT_SIZE ** 2
+
+
+# -----------------------------------------------------------------------------
+# Two-level builds (test_instances.py's grid of collection instances)
+
+
+@pytest.fixture
+def instanced_scene(addon):
+    import bsplab_test_utils as utils
+    from test_instances import build_instanced_scene
+    return build_instanced_scene(utils.reset_file("two_level"))
+
+
+def coverage(pixels):
+    return np.count_nonzero(pixels[..., 3] > 0) / (WIDTH * HEIGHT)
+
+
+def test_overlay_draws_a_two_level_build_and_the_instance_in_place(addon, core, instanced_scene,
+                                                                  gpu_context):
+    from test_two_level_views import grid_cube_point
+    scene = instanced_scene["scene"]
+    press(scene)
+    overlay, state = addon.overlay.draw, addon.state.STATE
+    assert addon.build_render.tree_cache.is_two_level(state.shown_build.tree())
+    props = scene.bsplab_overlay
+    props.show, props.max_depth = True, 3
+    # The cursor far from every instance: the top level's boxes only.
+    scene.cursor.location = (0.0, 0.0, 100.0)
+    assert overlay.current_geometry(scene)["instance"] is None
+    top_only = draw_through_camera(scene, overlay.draw_overlay)
+    assert state.overlay_draw_calls > 0
+    assert coverage(top_only) > 0.0, gpu_context
+    # On a cube of the grid: its own tree drawn in place besides - more drawn.
+    scene.cursor.location = grid_cube_point(instanced_scene, 1, 1)
+    assert overlay.current_geometry(scene)["instance"] is not None
+    both = draw_through_camera(scene, overlay.draw_overlay)
+    assert coverage(both) > coverage(top_only), (coverage(both), coverage(top_only))
+
+
+def test_inspector_draws_a_two_level_hit_where_the_preview_pixel_is(addon, core, instanced_scene,
+                                                                   gpu_context):
+    scene = instanced_scene["scene"]
+    press(scene)
+    width, height = addon.state.STATE.shown_build.render_size
+    image_height = bpy.data.images[addon.build_render.preview.IMAGE_NAME].size[1]
+    assert bpy.ops.bsplab.inspect_pixel(x=width // 2, y=image_height - 1 - height // 2) \
+        == {'FINISHED'}
+    inspection = addon.state.STATE.inspection
+    assert inspection["structure"] == "two_level"
+    assert inspection["counts"]["hit_instance"] is not None
+    pixels = draw_through_camera(scene, addon.inspector.draw._draw)
+    column, row = camera_pixel(scene, inspection["draw"]["hit"][0])
+    centre = pixels[row, column, :3]
+    hit_rgb = np.array(addon.inspector.draw.HIT_COLOUR[:3], dtype=np.float32)
+    assert np.allclose(centre, hit_rgb, atol=COLOUR_TOLERANCE), (centre, hit_rgb, gpu_context)
+    assert coverage(pixels) * WIDTH * HEIGHT > addon.inspector.draw.HIT_POINT_SIZE ** 2
