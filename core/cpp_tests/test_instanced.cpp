@@ -38,19 +38,31 @@ struct Hits {
     explicit Hits(size_t n) : t(n), u(n), v(n), prim(n), instance(n) {}
 };
 
-Hits trace(const InstancedScene& s, const std::vector<float>& o, const std::vector<float>& d) {
-    const size_t n = o.size() / 3;
-    Hits h(n);
-    const float tmin = 0.0f, tmax = INFINITY;
+// The rays o, d (3 floats each), unbounded: t in [0, inf).
+RayBatch unbounded(const std::vector<float>& o, const std::vector<float>& d) {
+    static const float tmin = 0.0f, tmax = INFINITY;
     RayBatch rays;
     rays.origins = o.data();
     rays.directions = d.data();
     rays.tmin = &tmin;
     rays.tmax = &tmax;
-    rays.count = n;
+    rays.count = o.size() / 3;
+    return rays;
+}
+
+Hits trace(const InstancedScene& s, const std::vector<float>& o, const std::vector<float>& d) {
+    Hits h(o.size() / 3);
     HitBatch hits{h.t.data(), h.prim.data(), h.u.data(), h.v.data()};
     InstanceHits extra{h.instance.data()};
-    intersect_instanced(s, rays, hits, extra, 1);
+    intersect_instanced(s, unbounded(o, d), hits, extra, 1);
+    return h;
+}
+
+// The same rays through one tree (instance stays 0).
+Hits trace(const Tree& tree, const std::vector<float>& o, const std::vector<float>& d) {
+    Hits h(o.size() / 3);
+    HitBatch hits{h.t.data(), h.prim.data(), h.u.data(), h.v.data()};
+    intersect(tree, unbounded(o, d), hits, 1, false);
     return h;
 }
 
@@ -81,6 +93,16 @@ TEST(Instanced, SingularAndBadMatricesAreRefusedByInstance) {
     EXPECT_THROW(build_instanced({&tree}, {0}, m, {}, nullptr), std::invalid_argument);
     EXPECT_THROW(build_instanced({&tree}, {1}, moved(1, 1, 1, 0, 0, 0), {}, nullptr),
                  std::invalid_argument);
+    // The check alone: the same refusal, naming the same instance.
+    try {
+        check_instance_matrices(two);
+        FAIL() << "check_instance_matrices accepted a singular matrix";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("instance 1: its matrix is singular"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_NO_THROW(check_instance_matrices(moved(2, -1, 0.5, 3, 4, 5)));
+    EXPECT_THROW(check_instance_matrices(m), std::invalid_argument);  // the NaN
 }
 
 TEST(Instanced, IdentityInstanceTracesAsItsTree) {
@@ -91,17 +113,10 @@ TEST(Instanced, IdentityInstanceTracesAsItsTree) {
     std::vector<float> o, d;
     random_rays(2000, o, d, 2.0f);
     const Hits h = trace(s, o, d);
-    std::vector<float> t(2000), u(2000), v(2000);
-    std::vector<int32_t> prim(2000);
-    const float tmin = 0.0f, tmax = INFINITY;
-    RayBatch rays;
-    rays.origins = o.data();
-    rays.directions = d.data();
-    rays.tmin = &tmin;
-    rays.tmax = &tmax;
-    rays.count = 2000;
-    HitBatch flat{t.data(), prim.data(), u.data(), v.data()};
-    intersect(tree, rays, flat, 1, false);
+    const Hits f = trace(tree, o, d);
+    const std::vector<int32_t>& prim = f.prim;
+    const std::vector<float>& t = f.t;
+    const std::vector<float>& u = f.u;
     int hits = 0;
     for (size_t i = 0; i < 2000; ++i) {
         EXPECT_EQ(h.prim[i], prim[i]);
