@@ -38,6 +38,38 @@ def script_argv():
     return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
 
 
+def add_core_paths():
+    """Make `bsplab` importable from BSPLAB_PYTHONPATH (a Blender binary's
+    Python ignores PYTHONPATH)."""
+    for entry in reversed(os.environ.get("BSPLAB_PYTHONPATH", "").split(os.pathsep)):
+        if entry and entry not in sys.path:
+            sys.path.insert(0, entry)
+
+
+def ready_addon(scene, method, preview):
+    """The add-on loaded and registered once, and the scene's Build & Render
+    set as every timing script presses it: `method`, shaded, `preview`
+    percent of the render size, no Embree comparison. Returns (add-on
+    module, the scene's settings)."""
+    addon = demo_headless.load_addon()
+    if not hasattr(bpy.types.Scene, "bsplab"):
+        addon.register()
+    settings = scene.bsplab
+    settings.method, settings.render_mode = method, "shaded"
+    settings.preview_percentage, settings.compare_with_embree = preview, False
+    return addon, settings
+
+
+def run(main):
+    """Exit with main()'s code; the bpy module leaves by os._exit, as it can
+    crash in its static destructors at exit."""
+    code = main()
+    sys.stdout.flush()
+    if not bpy.app.binary_path:
+        os._exit(code)
+    sys.exit(code)
+
+
 def scene_arguments(prog):
     """A parser with the options the timing scripts share (this one and
     time_inspector.py): the shared scene, the preview percentage, the method."""
@@ -85,9 +117,7 @@ def add_camera(scene, triangles):
 
 def main():
     args = parse_args()
-    for entry in reversed(os.environ.get("BSPLAB_PYTHONPATH", "").split(os.pathsep)):
-        if entry and entry not in sys.path:
-            sys.path.insert(0, entry)
+    add_core_paths()
     import bsplab
     from bsplab import io, workloads
     shared = workloads.shared_scenes_dir()
@@ -97,14 +127,7 @@ def main():
     path = shared / f"{args.scene}.ply"
     scene = import_scene(path)
     add_camera(scene, io.load_mesh(path))
-    addon = demo_headless.load_addon()
-    if not hasattr(bpy.types.Scene, "bsplab"):
-        addon.register()
-    settings = scene.bsplab
-    settings.method = args.method
-    settings.render_mode = "shaded"
-    settings.preview_percentage = args.preview
-    settings.compare_with_embree = False
+    addon, settings = ready_addon(scene, args.method, args.preview)
     if hasattr(settings, "count_steps"):
         settings.count_steps = not args.no_counts
     print(f"time_button: Blender {bpy.app.version_string}, {args.scene}, {args.method}, "
@@ -143,8 +166,4 @@ def press_button(addon, settings, press, cold):
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    if not bpy.app.binary_path:
-        os._exit(code)  # the bpy module can crash in static destructors at exit
-    sys.exit(code)
+    run(main)

@@ -58,13 +58,8 @@ def main():
         return 0
     scene = time_button.import_scene(path)
     time_button.add_camera(scene, io.load_mesh(path))
-    addon = time_button.demo_headless.load_addon()
-    if not hasattr(bpy.types.Scene, "bsplab"):
-        addon.register()
-    settings = scene.bsplab
-    settings.instances = "flatten"  # the inspector walks flat trees only (yet)
-    settings.method, settings.render_mode = args.method, "shaded"
-    settings.preview_percentage, settings.compare_with_embree = args.preview, False
+    addon, settings = time_button.ready_addon(scene, args.method, args.preview)
+    settings.instances = "flatten"  # a shared mesh is one object: nothing to instance
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
     build = addon.state.STATE.shown_build
     tree = build.tree()

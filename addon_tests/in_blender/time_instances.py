@@ -11,7 +11,6 @@ process's peak resident memory (ru_maxrss, the whole Blender process).
 """
 
 import argparse
-import os
 import pathlib
 import resource
 import sys
@@ -19,13 +18,8 @@ import time
 
 import bpy
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "addon_tools"))
-import demo_headless  # noqa: E402  (the add-on loader)
-
-
-def script_argv():
-    return sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+import time_button  # noqa: E402  (the timing scripts' shared set-up)
 
 
 def make_grid(side, level):
@@ -79,19 +73,10 @@ def main():
     p.add_argument("--level", type=int, default=3)
     p.add_argument("--method", default="kd")
     p.add_argument("--instances", default="two_level", help="the panel's Instances choice")
-    args = p.parse_args(script_argv())
-    for entry in reversed(os.environ.get("BSPLAB_PYTHONPATH", "").split(os.pathsep)):
-        if entry and entry not in sys.path:
-            sys.path.insert(0, entry)
+    args = p.parse_args(time_button.script_argv())
+    time_button.add_core_paths()
     scene, grid = make_grid(args.side, args.level)
-    addon = demo_headless.load_addon()
-    if not hasattr(bpy.types.Scene, "bsplab"):
-        addon.register()
-    settings = scene.bsplab
-    settings.method = args.method
-    settings.render_mode = "shaded"
-    settings.preview_percentage = 50
-    settings.compare_with_embree = False
+    addon, settings = time_button.ready_addon(scene, args.method, 50)
     settings.instances = args.instances
     if hasattr(settings, "count_steps"):
         settings.count_steps = False
@@ -111,8 +96,4 @@ def main():
 
 
 if __name__ == "__main__":
-    code = main()
-    sys.stdout.flush()
-    if not bpy.app.binary_path:
-        os._exit(code)
-    sys.exit(code)
+    time_button.run(main)
