@@ -18,17 +18,22 @@ MAX_ROWS = 40
 STEP_HEADER = ("#", "node", "t range", "tests")
 
 
+def hit_text(inspection, box):
+    """The Hit row: the triangle and t, "none", or that the ray missed `box`."""
+    totals = inspection["counts"]
+    if inspection["missed_box"]:
+        return "none: missed " + box
+    if totals["hit_prim"] is None:
+        return "none"
+    return "{} at t {:.4g}".format(totals["hit_prim"], totals["hit_t"])
+
+
 def count_rows(inspection):
     """(label, text) of the inspection's totals."""
     if inspection.get("structure") == "two_level":
         return two_level_count_rows(inspection)
     totals = inspection["counts"]
-    if inspection["missed_box"]:
-        hit = "none: missed the tree box"
-    elif totals["hit_prim"] is None:
-        hit = "none"
-    else:
-        hit = "{} at t {:.4g}".format(totals["hit_prim"], totals["hit_t"])
+    hit = hit_text(inspection, "the tree box")
     return [
         ("Ray", inspection["source"]),
         ("Steps", "{} ({} leaves)".format(totals["steps"], totals["leaves"])),
@@ -47,12 +52,7 @@ def two_level_count_rows(inspection):
     instances entered, the steps inside them (summed) and the hit's
     instance."""
     totals = inspection["counts"]
-    if inspection["missed_box"]:
-        hit = "none: missed the scene's box"
-    elif totals["hit_prim"] is None:
-        hit = "none"
-    else:
-        hit = "{} at t {:.4g}".format(totals["hit_prim"], totals["hit_t"])
+    hit = hit_text(inspection, "the scene's box")
     top_leaves = sum(1 for row in inspection["top_rows"] if row[1] == "leaf")
     rows = [
         ("Ray", inspection["source"]),

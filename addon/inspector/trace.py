@@ -89,6 +89,12 @@ def step_rows(path):
 def counts(path):
     """The walk's totals as the panel shows them."""
     hit = int(path["prim"]) >= 0 and np.isfinite(path["t"])
+    return totals(path, hit, int(np.count_nonzero(path["kind"] == LEAF)))
+
+
+def totals(path, hit, leaves):
+    """The counters of a walk's path (flat, or a two-level walk's summed
+    over the instances entered), the hit (when `hit`) and `leaves`."""
     return {
         "steps": int(path["steps"]),
         "general_steps": int(path["general_steps"]),
@@ -99,7 +105,7 @@ def counts(path):
         "box_tests": int(path.get("box_tests", 0)),
         "hit_prim": int(path["prim"]) if hit else None,
         "hit_t": float(path["t"]) if hit else None,
-        "leaves": int(np.count_nonzero(path["kind"] == LEAF)),
+        "leaves": leaves,
     }
 
 

@@ -51,21 +51,15 @@ def counts(path):
     visits = path["instances"]
     leaves = sum(int(np.count_nonzero(v["path"]["kind"] == trace.LEAF)) for v in visits)
     hit_visit = next((v for v in visits if v["instance"] == path["instance"]), None)
-    return {
-        "steps": int(path["steps"]),
-        "general_steps": int(path["general_steps"]),
-        "tests": int(path["tests"]),
-        "culled": int(path["culled"]),
-        "box_tests": int(path.get("box_tests", 0)),
-        "hit_prim": int(path["prim"]) if hit else None,
-        "hit_t": float(path["t"]) if hit else None,
-        "leaves": leaves,
+    out = trace.totals(path, hit, leaves)
+    out.update({
         "top_steps": int(path["top_steps"]),
         "instance_visits": int(path["instance_visits"]),
         "hit_instance": int(path["instance"]) if hit else None,
         "hit_mesh": int(hit_visit["mesh"]) if hit and hit_visit is not None else None,
         "flat_prim": int(path["flat_prim"]) if hit else None,
-    }
+    })
+    return out
 
 
 def scene_box(tree):
@@ -147,11 +141,8 @@ def draw_data(tree, inspection):
     "instance_cells": per instance entered, (instance, its cell vertices).
     """
     path = inspection["path"]
-    origin, direction = inspection["origin"], inspection["direction"]
     hit_instance = inspection["counts"]["hit_instance"]
-    end = origin.astype(np.float64) + inspection["end_t"] * direction.astype(np.float64)
-    ray = np.array([origin, end], dtype=np.float32)
-    hit = ray[1:] if hit_instance is not None else np.zeros((0, 3), np.float32)
+    ray, hit = walk_arrays.ray_segment(inspection, hit_instance is not None)
 
     top = boxes.segments(path["top"]["box_lo"], path["top"]["box_hi"])
     per_instance = [(int(v["instance"]), instance_cells(tree, v)) for v in path["instances"]]

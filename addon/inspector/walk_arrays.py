@@ -82,11 +82,8 @@ def draw_data(tree, triangles, inspection):
     (taken from `triangles`, those `tree` was built of), one colour per
     corner."""
     path = inspection["path"]
-    origin, direction = inspection["origin"], inspection["direction"]
     hit_prim = inspection["counts"]["hit_prim"]
-    end = origin.astype(np.float64) + inspection["end_t"] * direction.astype(np.float64)
-    ray = np.array([origin, end], dtype=np.float32)
-    hit = ray[1:] if hit_prim is not None else np.zeros((0, 3), np.float32)
+    ray, hit = ray_segment(inspection, hit_prim is not None)
     if inspection.get("structure") == "bvh":
         cell_coords, cell_cols = box_lines(path)
     else:
@@ -102,3 +99,13 @@ def draw_data(tree, triangles, inspection):
         "tri_coords": np.ascontiguousarray(tris, dtype=np.float32),
         "tri_colours": np.repeat(colours, 3, axis=0),
     }
+
+
+def ray_segment(inspection, hit):
+    """The ray drawn from its origin to end_t (the hit, or where it leaves
+    the box): (2, 3) float32, and the hit point (1, 3), or (0, 3) when it
+    missed."""
+    origin, direction = inspection["origin"], inspection["direction"]
+    end = origin.astype(np.float64) + inspection["end_t"] * direction.astype(np.float64)
+    ray = np.array([origin, end], dtype=np.float32)
+    return ray, ray[1:] if hit else np.zeros((0, 3), np.float32)
