@@ -98,22 +98,30 @@ def test_overlay_draws_the_kept_trees_planes(addon, core, test_scene, gpu_contex
 def test_inspector_draws_the_hit_where_the_preview_pixel_is(addon, core, test_scene, gpu_context):
     scene = test_scene["scene"]
     press(scene)
-    # The middle of the preview, picked as test_inspector.py does it.
+    inspection = inspect_middle_pixel(addon)
+    assert inspection["counts"]["hit_prim"] >= 0
+    assert_hit_drawn(addon, scene, inspection, gpu_context)
+
+
+def inspect_middle_pixel(addon):
+    """The ray inspector on the middle of the preview, picked as
+    test_inspector.py does it; the inspection."""
     width, height = addon.state.STATE.shown_build.render_size
     image_height = bpy.data.images[addon.build_render.preview.IMAGE_NAME].size[1]
     assert bpy.ops.bsplab.inspect_pixel(x=width // 2, y=image_height - 1 - height // 2) \
         == {'FINISHED'}
-    inspection = addon.state.STATE.inspection
-    assert inspection["counts"]["hit_prim"] >= 0
+    return addon.state.STATE.inspection
 
+
+def assert_hit_drawn(addon, scene, inspection, gpu_context):
+    """The inspector's drawing: the hit point drawn last, opaque and on top,
+    at the pixel where the camera sees it, and around it the tested
+    triangles and the cells."""
     pixels = draw_through_camera(scene, addon.inspector.draw._draw)
-    # The hit point is drawn last, opaque and on top, at the pixel where the
-    # camera sees it.
     column, row = camera_pixel(scene, inspection["draw"]["hit"][0])
     centre = pixels[row, column, :3]
     hit_rgb = np.array(addon.inspector.draw.HIT_COLOUR[:3], dtype=np.float32)
     assert np.allclose(centre, hit_rgb, atol=COLOUR_TOLERANCE), (centre, hit_rgb, gpu_context)
-    # Around it, the tested triangles and the cells are drawn too.
     assert np.count_nonzero(pixels[..., 3] > 0) > addon.inspector.draw.HIT_POINT_SIZE ** 2
 
 
@@ -158,16 +166,7 @@ def test_inspector_draws_a_two_level_hit_where_the_preview_pixel_is(addon, core,
                                                                    gpu_context):
     scene = instanced_scene["scene"]
     press(scene)
-    width, height = addon.state.STATE.shown_build.render_size
-    image_height = bpy.data.images[addon.build_render.preview.IMAGE_NAME].size[1]
-    assert bpy.ops.bsplab.inspect_pixel(x=width // 2, y=image_height - 1 - height // 2) \
-        == {'FINISHED'}
-    inspection = addon.state.STATE.inspection
+    inspection = inspect_middle_pixel(addon)
     assert inspection["structure"] == "two_level"
     assert inspection["counts"]["hit_instance"] is not None
-    pixels = draw_through_camera(scene, addon.inspector.draw._draw)
-    column, row = camera_pixel(scene, inspection["draw"]["hit"][0])
-    centre = pixels[row, column, :3]
-    hit_rgb = np.array(addon.inspector.draw.HIT_COLOUR[:3], dtype=np.float32)
-    assert np.allclose(centre, hit_rgb, atol=COLOUR_TOLERANCE), (centre, hit_rgb, gpu_context)
-    assert coverage(pixels) * WIDTH * HEIGHT > addon.inspector.draw.HIT_POINT_SIZE ** 2
+    assert_hit_drawn(addon, scene, inspection, gpu_context)
