@@ -281,7 +281,9 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     excuse: one of its triangles must be hit whatever the rounding
     (mesh_edges). `slack` (per ray, world units) is how far our ray may be
     displaced (compare's): a hit that much farther along the ray's crossing
-    of the plane is no leak. Returns the indices."""
+    of the plane is no leak, and so is a hit on a neighbour of Embree's
+    triangle across an edge or vertex the ray passes within slack of
+    (_across_shared_edge). Returns the indices."""
     from . import mesh_edges
 
     pa, pb = ours["prim"], ref["prim"]
@@ -349,4 +351,51 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
         cos = np.abs(np.einsum("ij,ij->i", n, d64)) / (
             np.linalg.norm(n, axis=1) * np.linalg.norm(d64, axis=1))
         excused |= ~(cos > PARALLEL_COS)
+    if slack is not None:
+        excused |= _across_shared_edge(tris, pa[idx], prim, o, d, ta[idx], tb[idx],
+                                       moved[idx], rel_tol, edge_ulps, ~excused)
     return idx[~excused]
+
+
+def _across_shared_edge(tris, ours, theirs, o, d, ta, tb, slack, rel_tol, edge_ulps, rows):
+    """Per ray (where `rows`): our hit on a neighbour of Embree's triangle is
+    the displaced ray's honest hit. The world ray passes within `slack` (plus
+    the flattened scene's own rounding) of an edge or vertex the two triangles
+    share, so a ray displaced by slack may cross to our side of it, and there
+    meet our triangle where its plane is: at most slack / (|d| cos) farther
+    along the ray, cos that of our triangle, which is large where it is
+    grazing (a box's face seen edge-on, fuzzed mirrored instance)."""
+    out = np.zeros(len(ours), bool)
+    eps = np.finfo(np.float32).eps
+    for row in np.flatnonzero(rows & (ours >= 0) & (ours != theirs)):
+        a, b = tris[ours[row]].astype(np.float64), tris[theirs[row]].astype(np.float64)
+        common = [v for v in a if (b == v).all(axis=1).any()]
+        if not common:
+            continue
+        o64, d64 = o[row].astype(np.float64), d[row].astype(np.float64)
+        p, q = common[0], common[-1]
+        dist = _line_segment_distance(o64, d64, p, q)
+        scale = max(np.abs(a).max(), np.abs(b).max(), np.abs(o64).max())
+        n = np.cross(a[1] - a[0], a[2] - a[0])
+        speed = np.linalg.norm(d64)
+        cos = abs(n @ d64) / max(np.linalg.norm(n) * speed, 1e-300)
+        reach = slack[row] + edge_ulps * eps * scale
+        out[row] = dist <= reach and ta[row] <= (
+            tb[row] + rel_tol * abs(tb[row]) + reach / (speed * max(cos, PARALLEL_COS)))
+    return out
+
+
+def _line_segment_distance(o, d, p, q) -> float:
+    """Distance (double precision) from the line o + t d to the segment pq
+    (a point where p == q)."""
+    e = q - p
+    ee, dd, de = e @ e, d @ d, d @ e
+    w = o - p
+    den = dd * ee - de * de
+    # The segment's parameter of the lines' closest approach, clamped; the
+    # line's nearest point to that point of the segment then follows.
+    s = 0.0 if ee == 0 or den <= 1e-300 * dd * ee else \
+        float(np.clip((dd * (w @ e) - de * (w @ d)) / den, 0.0, 1.0))
+    x = p + s * e
+    t = (x - o) @ d / dd
+    return float(np.linalg.norm(o + t * d - x))

@@ -317,3 +317,33 @@ def test_a_matrix_beyond_float_range_is_refused():
     huge = instanced_scenes.affine(np.eye(3) * 1e39, (0, 0, 0))
     with pytest.raises(ValueError, match="instance 0: its matrix carries the mesh beyond float"):
         bsplab.build_instanced([instanced_scenes.cube()], [0], huge[None])
+
+
+# The oracle's transform-slack rule at a shared edge (oracle.leaks with slack):
+# a flat triangle B (Embree's hit) and a steep neighbour A sharing B's edge
+# y = 0, A's plane z = 100 y (cos 0.01 to a ray straight down), and a
+# triangle C far below. A ray 1e-7 from the edge, displaced by the slack to
+# y < 0, meets A 100 times the displacement lower.
+_EDGE_TRIS = np.array([
+    [[0, 0, 0], [1, 0, 0], [0, 1, 0]],              # B
+    [[0, 0, 0], [1, 0, 0], [0.5, -0.01, -1]],       # A
+    [[-1, -1, -2], [2, -1, -2], [0.5, 2, -2]],      # C
+], np.float32)
+
+
+@pytest.mark.parametrize("offset, ours, t, slack, leak", [
+    (1e-7, 1, 1.0003, 3e-6, False),  # within slack of the edge, within 100 slack on A
+    (1e-7, 1, 1.0003, 1e-7, True),   # farther along A than the slack allows
+    (1e-3, 1, 1.0003, 3e-6, True),   # the ray passes far from the shared edge
+    (1e-7, 2, 3.0, 3e-6, True),      # C shares no edge with B: through the surface
+    (1e-7, -1, np.inf, 3e-6, True),  # a miss is always a leak here
+])
+def test_transform_slack_excuses_only_the_neighbour_across_a_shared_edge(
+        offset, ours, t, slack, leak):
+    o = np.array([[0.5, offset, 1]], np.float32)
+    d = np.array([[0, 0, -1]], np.float32)
+    ref = {"t": np.array([1.0], np.float32), "prim": np.array([0], np.int32)}
+    got = {"t": np.array([t], np.float32), "prim": np.array([ours], np.int32)}
+    bad = oracle.leaks(got, ref, triangles=_EDGE_TRIS, origins=o, directions=d,
+                       slack=np.array([slack]))
+    assert (bad.size == 1) == leak
