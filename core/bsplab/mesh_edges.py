@@ -38,7 +38,8 @@ def edge_groups(tris: np.ndarray) -> np.ndarray:
 
 
 def crosses_surface(tris: np.ndarray, groups: np.ndarray, ids: np.ndarray, prim: int,
-                    edge: int, direction: np.ndarray, parallel_cos: float = 0.0) -> bool:
+                    edge: int, direction: np.ndarray, parallel_cos: float = 0.0,
+                    slack: float = 0.0) -> bool:
     """Whether a ray along `direction` through edge `edge` of triangle
     `prim` passes from one side of the surface to the other there (one of
     the edge's other triangles faces the ray the way `prim` does, windings
@@ -49,18 +50,31 @@ def crosses_surface(tris: np.ndarray, groups: np.ndarray, ids: np.ndarray, prim:
     does not count: seen along the ray it is a segment, so the edge is a
     silhouette there unless the float data round the right way (a ray lying
     in a sphere's face plane, through the edge to its neighbour).
+    Nor does one narrower than `slack` seen along the ray (its height over
+    the edge, projected on the plane across the ray): a ray displaced that
+    far (the instanced oracle's transform rounding) may pass beside it, as
+    past a zero-thickness box's rim, whose side faces are edge-on slivers.
     `groups` is edge_groups(tris) and `ids` triangle_ids(tris), computed
     once by the caller: both sort the whole mesh, and the leak check asks
     this for many rays."""
     t32 = np.asarray(tris, np.float32)
     row = 3 * prim + edge
     d = np.asarray(direction, np.float64)
+    speed = np.linalg.norm(d)
 
     def facing(r: int) -> float:
         t = t32[r // 3].astype(np.float64)
         n = np.cross(t[1] - t[0], t[2] - t[0])
         f = float(np.dot(n, d))
-        return 0.0 if abs(f) <= parallel_cos * np.linalg.norm(n) * np.linalg.norm(d) else f
+        if abs(f) <= parallel_cos * np.linalg.norm(n) * speed:
+            return 0.0
+        if slack > 0:
+            # Twice the projected area over the projected edge's length.
+            e = t[(r % 3 + 1) % 3] - t[r % 3]
+            across = np.linalg.norm(np.cross(e, d))
+            if abs(f) <= slack * across:
+                return 0.0
+        return f
 
     def start(r: int) -> np.ndarray:  # the edge's first end point (triangle_edges' a)
         return t32[r // 3, r % 3]

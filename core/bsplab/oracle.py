@@ -314,7 +314,12 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
         dist, scale = edge_distance(tris, prim, o, d, per_edge=True)
         t, err = plane_distance(tris, prim, o, d)
         along = err * np.linalg.norm(d.astype(np.float64), axis=1)
-        near = np.abs(dist) <= edge_ulps * (np.finfo(np.float32).eps * scale + along)[:, None]
+        # Within the slack of an edge too: the displaced ray, in the plane
+        # of Embree's triangle, is at most slack / cos off (cos bounded below
+        # as above).
+        shift = moved[idx] / np.maximum(cos[idx], PARALLEL_COS)
+        near = np.abs(dist) <= (edge_ulps * (np.finfo(np.float32).eps * scale + along)
+                                + shift)[:, None]
     # Excused: near an edge the ray does not cross the surface through - an
     # open edge, or a silhouette edge (mesh_edges.crosses_surface).
     groups = mesh_edges.edge_groups(tris)
@@ -323,7 +328,8 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
     excused = np.zeros(len(idx), bool)
     for row, edge in zip(*np.nonzero(near)):
         if not excused[row] and not mesh_edges.crosses_surface(
-                tris, groups, ids, int(prim[row]), int(edge), d[row], PARALLEL_COS):
+                tris, groups, ids, int(prim[row]), int(edge), d[row], PARALLEL_COS,
+                slack=float(moved[idx[row]])):
             excused[row] = True
     # Near two edges: through their common vertex, which may be a corner
     # the ray only touches.

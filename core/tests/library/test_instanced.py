@@ -347,3 +347,24 @@ def test_transform_slack_excuses_only_the_neighbour_across_a_shared_edge(
     bad = oracle.leaks(got, ref, triangles=_EDGE_TRIS, origins=o, directions=d,
                        slack=np.array([slack]))
     assert (bad.size == 1) == leak
+
+
+# And a neighbour narrower than the slack seen along the ray: B as above and
+# A's plane nearly along the ray (cos 3e-4, so not edge-on by PARALLEL_COS):
+# seen from above it is a sliver 3e-4 wide, which a ray displaced by more
+# may pass beside (a zero-thickness box's rim, fuzzed), missing both.
+_SLIVER_TRIS = np.array([
+    [[0, 0, 0], [1, 0, 0], [0, 1, 0]],              # B
+    [[0, 0, 0], [1, 0, 0], [0.5, -3e-4, -1]],       # A
+], np.float32)
+
+
+@pytest.mark.parametrize("slack, leak", [(1e-3, False), (1e-4, True), (None, True)])
+def test_transform_slack_lets_a_ray_pass_beside_a_sliver_neighbour(slack, leak):
+    o = np.array([[0.5, 1e-7, 1]], np.float32)
+    d = np.array([[0, 0, -1]], np.float32)
+    ref = {"t": np.array([1.0], np.float32), "prim": np.array([0], np.int32)}
+    miss = {"t": np.array([np.inf], np.float32), "prim": np.array([-1], np.int32)}
+    bad = oracle.leaks(miss, ref, triangles=_SLIVER_TRIS, origins=o, directions=d,
+                       slack=None if slack is None else np.array([slack]))
+    assert (bad.size == 1) == leak
