@@ -12,6 +12,7 @@
 // smallest t. The only difference from tracing the flattened scene is that
 // rounding (docs/instances.md, and the oracle's rule for it).
 #pragma once
+#include <cassert>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -41,13 +42,57 @@ struct InstancedStats {
     uint64_t instanced_triangles = 0;  // what the flattened scene would hold
 };
 
+// The top level's binary BVH (build_bvh's nodes, bvh_node.hpp) in the layout
+// its walk reads: each pair of siblings in one 64-byte line - their boxes
+// axis by axis, lanes (A.lo, B.lo, A.hi, B.hi), and their links (BvhNode's
+// first and bits). So a step loads one line: the walk learns a child's
+// link with its box, and its next load is that child's own pair, where
+// BvhNode's layout took two dependent loads a step (the node, then its
+// children) and a 4 x 4 transpose with a per-axis lane swap; the near and
+// far faces come with two 8-byte loads per axis at offsets chosen once per
+// ray by the direction's signs. The same 32 bytes a node as BvhNode; the
+// root's box and link apart.
+struct TopLevel {
+    struct Link {
+        uint32_t first = 0, bits = 0;  // as BvhNode: a leaf's top_order slot and count, or
+                                       // kInteriorTag and the left child
+        constexpr bool is_leaf() const { return bits != BvhNode::kInteriorTag; }
+        constexpr uint32_t left() const {
+            assert(!is_leaf());
+            return first;
+        }
+        constexpr uint32_t count() const {
+            assert(is_leaf());
+            return bits;
+        }
+    };
+    struct alignas(64) Pair {
+        float axis[3][4];  // per axis: (A.lo, B.lo, A.hi, B.hi); A = node 2p + 1, B = 2p + 2
+        Link link[2];      // A's, B's
+    };
+    Box root;
+    Link root_link;
+    std::vector<Pair> pairs;  // per pair of siblings (nodes 2p + 1 and 2p + 2)
+    size_t nodes = 0;         // 0: no top level (no instance has a triangle)
+
+    // From build_bvh's nodes (root first, each node's children a pair at
+    // 2p + 1, 2p + 2); and the binary nodes back, for drawing and for
+    // trace_path's replay.
+    static TopLevel from_nodes(const std::vector<BvhNode>& nodes);
+    BvhNode node(size_t i) const;
+    static const Pair& pair_of(const Pair* pairs, uint32_t left) { return pairs[(left - 1) >> 1]; }
+    size_t size() const { return nodes; }
+    bool empty() const { return nodes == 0; }
+    size_t bytes() const { return sizeof(Box) + sizeof(Link) + pairs.size() * sizeof(Pair); }
+};
+static_assert(sizeof(TopLevel::Pair) == 64, "a top-level pair is one cache line");
+
 struct InstancedScene {
     std::vector<const Tree*> meshes;  // not owned: the caller keeps the trees alive
     std::vector<Instance> instances;
-    // The top level: binary BVH nodes (bvh_node.hpp), leaves indexing
-    // top_order, which holds instance indices. Empty when no instance has
-    // a triangle.
-    std::vector<BvhNode> top_nodes;
+    // The top level: a binary BVH (TopLevel), leaves indexing top_order,
+    // which holds instance indices. Empty when no instance has a triangle.
+    TopLevel top;
     std::vector<uint32_t> top_order;
     // The first index of instance i's triangles in the flattened scene
     // (instances in order, each mesh's triangles in input order): the tie

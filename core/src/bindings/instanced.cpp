@@ -76,12 +76,12 @@ nb::dict stats(const InstancedScene& scene) {
 // drawing the top level's boxes and for trace_path's walk (bsplab/instanced.py),
 // which replays the core's walk from them.
 nb::dict top_arrays(const InstancedScene& scene) {
-    const size_t n = scene.top_nodes.size();
+    const size_t n = scene.top.size();
     std::vector<float> lo(3 * n), hi(3 * n);
     std::vector<uint32_t> first(n), count(n);
     std::vector<uint8_t> leaf(n);
     for (size_t i = 0; i < n; ++i) {
-        const BvhNode& b = scene.top_nodes[i];
+        const BvhNode b = scene.top.node(i);
         for (int k = 0; k < 3; ++k) {
             lo[3 * i + k] = b.lo[k];
             hi[3 * i + k] = b.hi[k];

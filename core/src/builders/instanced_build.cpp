@@ -85,6 +85,47 @@ Box world_box(const Box& object, double scale, const double* m) {
 
 }  // namespace
 
+TopLevel TopLevel::from_nodes(const std::vector<BvhNode>& nodes) {
+    TopLevel top;
+    if (nodes.empty()) return top;
+    top.nodes = nodes.size();
+    top.root = nodes[0].box();
+    top.root_link = {nodes[0].first, nodes[0].bits};
+    top.pairs.resize((nodes.size() - 1) / 2);
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        const BvhNode& n = nodes[i];
+        // build_bvh's layout, which the pair index relies on.
+        if (!n.is_leaf() && (n.left() % 2 != 1 || n.right() >= nodes.size()))
+            throw std::logic_error("top level: children not in pairs at 2p + 1, 2p + 2");
+        if (i == 0) continue;
+        Pair& p = top.pairs[(i - 1) / 2];
+        const int lane = int((i - 1) % 2);
+        for (int k = 0; k < 3; ++k) {
+            p.axis[k][lane] = n.lo[k];
+            p.axis[k][2 + lane] = n.hi[k];
+        }
+        p.link[lane] = {n.first, n.bits};
+    }
+    return top;
+}
+
+BvhNode TopLevel::node(size_t i) const {
+    Box b = root;
+    Link l = root_link;
+    if (i > 0) {
+        const Pair& p = pairs[(i - 1) / 2];
+        const int lane = int((i - 1) % 2);
+        for (int k = 0; k < 3; ++k) {
+            b.lo[k] = p.axis[k][lane];
+            b.hi[k] = p.axis[k][2 + lane];
+        }
+        l = p.link[lane];
+    }
+    BvhNode n = BvhNode::leaf(b, l.first, 0);
+    n.bits = l.bits;
+    return n;
+}
+
 void check_instance_matrices(const std::vector<double>& matrices) {
     if (matrices.size() % 12 != 0)
         throw std::invalid_argument("check_instance_matrices: 3 x 4 matrices, 12 numbers each");
@@ -147,7 +188,7 @@ InstancedScene build_instanced(std::vector<const Tree*> meshes,
         s.threads = settings.threads;
         MemoryBudget budget(1e12);
         BvhResult r = build_bvh(boxes, centroids, ids, s, progress, budget);
-        scene.top_nodes = std::move(r.nodes);
+        scene.top = TopLevel::from_nodes(r.nodes);
         scene.top_order.resize(r.order.size());
         for (size_t k = 0; k < r.order.size(); ++k) scene.top_order[k] = instance_of[r.order[k]];
         scene.stats.top_depth = r.max_depth;
@@ -157,8 +198,8 @@ InstancedScene build_instanced(std::vector<const Tree*> meshes,
     InstancedStats& st = scene.stats;
     st.meshes = scene.meshes.size();
     st.instances = n;
-    st.top_nodes = scene.top_nodes.size();
-    st.top_bytes = scene.top_nodes.size() * sizeof(BvhNode) +
+    st.top_nodes = scene.top.size();
+    st.top_bytes = scene.top.bytes() +
                    scene.top_order.size() * sizeof(uint32_t) + n * sizeof(Instance) +
                    n * sizeof(uint64_t);
     st.instanced_triangles = flat;
