@@ -376,9 +376,12 @@ class InstancedTree:
         its mesh), plus "instance" (-1 on a miss) and "flat_prim" (the index
         in flatten()'s triangles). With counters, COUNTERS hold the bottom
         trees' sums over the instances entered, TOP_COUNTERS the top level's.
-        `packets=True` gives the same hits, traced one ray at a time (as a
-        BVH's packets are); leaf culling (`cull=True`) is not offered in two
-        levels."""
+        `packets=True` (with counters=False) gives the same hits, bit for
+        bit: groups of consecutive rays walk the top level together and go
+        through each mesh tree's packet kernel together (a BVH mesh tree
+        traces its packets one ray at a time, as Tree.intersect does);
+        fast when consecutive rays are coherent (render's tiles). Leaf
+        culling (`cull=True`) is not offered in two levels."""
         cull, counters, packets = checks.trace_flags(cull, counters, packets)
         if cull:
             raise ValueError("cull=True: leaf culling is not offered for instanced scenes "
@@ -395,7 +398,7 @@ class InstancedTree:
             out.update({name: np.empty(n, np.uint32) for name in names})
         _core.intersect_instanced(self._scene, o, d, lo, hi, out["t"], out["prim"], out["u"],
                                   out["v"], out["instance"], *(out.get(k) for k in names),
-                                  checks.threads(threads), progress)
+                                  checks.threads(threads), packets, progress)
         hit = out["instance"] >= 0
         out["flat_prim"] = np.where(hit, self.flat_offsets[np.maximum(out["instance"], 0)]
                                     + out["prim"], -1).astype(np.int64)

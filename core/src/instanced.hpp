@@ -137,4 +137,11 @@ struct InstanceHits {
 void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
                          InstanceHits& extra, int threads, Progress* progress = nullptr);
 
+// The same hits, bit for bit, hits only (no counter arrays): groups of
+// consecutive rays walk the top level together and go through each mesh
+// tree's packet kernel together (a BVH mesh tree's: its single rays).
+void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& rays,
+                                 HitBatch& hits, InstanceHits& extra, int threads,
+                                 Progress* progress = nullptr);
+
 }  // namespace bsp

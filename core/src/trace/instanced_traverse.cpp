@@ -54,6 +54,7 @@ struct TopRay {
     bool neg[3];
     int near_off[3], far_off[3];  // in a PairBoxes axis: the near faces' lanes, the far faces'
 
+    TopRay() = default;
     TopRay(const float* of, const float* df, float scene_max) {
         for (int k = 0; k < 3; ++k) {
             o[k] = of[k];
@@ -107,6 +108,32 @@ struct Bottom {
     TreeView view;
 };
 
+// The ray in the instance's object space, rounded once to float: false when
+// no float ray is there - beyond float's range (a ray from 10^38 units away
+// to a small mesh) or a direction that underflows to zero.
+bool object_ray(const Instance& inst, const double o[3], const double d[3], float ob[3],
+                float db[3]) {
+    const double* m = inst.object_from_world;
+    bool representable = true;
+    for (int r = 0; r < 3; ++r) {
+        const double x = m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2] + m[4 * r + 3];
+        const double y = m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2];
+        representable &= std::fabs(x) <= double(FLT_MAX) && std::fabs(y) <= double(FLT_MAX);
+        ob[r] = representable ? float(x) : 0.0f;
+        db[r] = representable ? float(y) : 0.0f;
+    }
+    return representable && (db[0] != 0.0f || db[1] != 0.0f || db[2] != 0.0f);
+}
+
+// The scene's largest coordinate: the top level's crossing bound (TopRay).
+float scene_max_of(const InstancedScene& scene) {
+    float m = 0.0f;
+    if (!scene.top.empty())
+        for (int k = 0; k < 3; ++k)
+            m = std::max({m, std::fabs(scene.top.root.lo[k]), std::fabs(scene.top.root.hi[k])});
+    return m;
+}
+
 }  // namespace
 
 void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
@@ -120,11 +147,7 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
     bottom.reserve(scene.meshes.size());
     for (const Tree* t : scene.meshes) bottom.push_back({bottom_kernel(*t, counting), make_tree_view(*t)});
     const TopLevel::Pair* pairs = scene.top.pairs.data();
-    // The scene's largest coordinate: the top level's crossing bound (TopRay).
-    float scene_max = 0.0f;
-    if (!scene.top.empty())
-        for (int k = 0; k < 3; ++k)
-            scene_max = std::max({scene_max, std::fabs(scene.top.root.lo[k]), std::fabs(scene.top.root.hi[k])});
+    const float scene_max = scene_max_of(scene);
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     constexpr size_t kChunk = 256;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
@@ -202,24 +225,8 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                     for (uint32_t k = 0; k < n.count(); ++k) {
                         const uint32_t id = scene.top_order[n.first + k];
                         const Instance& inst = scene.instances[id];
-                        const double* m = inst.object_from_world;
                         float ob[3], db[3];
-                        bool representable = true;
-                        for (int r = 0; r < 3; ++r) {
-                            const double x = m[4 * r] * o[0] + m[4 * r + 1] * o[1] +
-                                             m[4 * r + 2] * o[2] + m[4 * r + 3];
-                            const double y =
-                                m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2];
-                            // Beyond float's range in object space (a ray from
-                            // 10^38 units away to a small mesh): no float ray there.
-                            representable &=
-                                std::fabs(x) <= double(FLT_MAX) && std::fabs(y) <= double(FLT_MAX);
-                            ob[r] = representable ? float(x) : 0.0f;
-                            db[r] = representable ? float(y) : 0.0f;
-                        }
-                        if (!representable) continue;
-                        if (db[0] == 0.0f && db[1] == 0.0f && db[2] == 0.0f)
-                            continue;  // underflow
+                        if (!object_ray(inst, o, d, ob, db)) continue;
                         ++visits;
                         // Beyond the closest hit by one ulp, so that a hit at the
                         // same t comes back and the tie rule can take it.
@@ -281,6 +288,152 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                 hits.box_tests[i] = box_tests;
                 extra.top_steps[i] = top_steps;
                 extra.instance_visits[i] = visits;
+            }
+        }
+        if (progress) progress->add(units_per_ray * (end - begin));
+    });
+}
+
+// Rays walked together through the top level on the packet path.
+constexpr int kGroup = 8;
+
+void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
+                                 InstanceHits& extra, int threads, Progress* progress) {
+    if (hits.steps || extra.top_steps || extra.instance_visits)
+        throw std::invalid_argument(
+            "intersect: packets trace hits only; pass counters=False with packets=True");
+    // Each mesh tree's packet kernel (a BVH's: its single rays, as intersect's).
+    const KernelSet& ks = selected_kernels();
+    std::vector<Bottom> bottom;
+    bottom.reserve(scene.meshes.size());
+    for (const Tree* t : scene.meshes)
+        bottom.push_back({t->structure == Structure::Bvh ? ks.bvh_single_ray[0] : ks.packets,
+                          make_tree_view(*t)});
+    const TopLevel::Pair* pairs = scene.top.pairs.data();
+    const float scene_max = scene_max_of(scene);
+    const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
+    constexpr size_t kChunk = 256;
+    static_assert(kChunk % kGroup == 0, "groups stay inside a thread's chunk");
+    parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
+        if (progress) progress->check();
+        for (size_t first = begin; first < end; first += kGroup) {
+            // A group of consecutive rays (a tile of camera rays: render's
+            // order) walks the top level as one: a node is entered by the
+            // rays whose own test (TopRay, their own closest hit) enters it,
+            // and at an instance those rays, carried into its object space
+            // each as on the single-ray path, go through the mesh tree's
+            // packet kernel together. A ray may see an instance its own walk
+            // would have passed by - its box not entered before the ray's
+            // closest hit, so nothing there is nearer - and the closest hit
+            // over instances does not depend on their order: the same hits
+            // as intersect_instanced, bit for bit.
+            const int g = int(std::min<size_t>(kGroup, end - first));
+            TopRay ray[kGroup];
+            double o[kGroup][3], d[kGroup][3];
+            float tmin[kGroup], tmax[kGroup], best_t[kGroup], best_u[kGroup], best_v[kGroup];
+            int32_t best_prim[kGroup], best_instance[kGroup];
+            uint64_t best_flat[kGroup];
+            uint32_t mask = 0;
+            for (int j = 0; j < g; ++j) {
+                const size_t i = first + size_t(j);
+                const float* of = rays.origins + 3 * i;
+                const float* df = rays.directions + 3 * i;
+                for (int k = 0; k < 3; ++k) o[j][k] = of[k], d[j][k] = df[k];
+                tmin[j] = rays.tmin[i * rays.tmin_stride];
+                tmax[j] = rays.tmax[i * rays.tmax_stride];
+                ray[j] = TopRay(of, df, scene_max);
+                best_t[j] = tmax[j];
+                best_u[j] = best_v[j] = 0.0f;
+                best_prim[j] = best_instance[j] = -1;
+                best_flat[j] = std::numeric_limits<uint64_t>::max();
+                float t0 = tmin[j], t1 = tmax[j];
+                if (!scene.top.empty() && ray[j].clip(scene.top.root, t0, t1)) mask |= 1u << j;
+            }
+            struct Entry {
+                TopLevel::Link node;
+                uint32_t rays;
+            } stack[kTopStack];
+            int top = 0;
+            TopLevel::Link n = scene.top.root_link;
+            while (mask) {
+                if (!n.is_leaf()) {
+                    const TopLevel::Pair& p = TopLevel::pair_of(pairs, n.left());
+                    uint32_t in_a = 0, in_b = 0;
+                    int nearer_b = 0;  // rays that enter B first, less those that enter A first
+                    for (uint32_t m = mask; m; m &= m - 1) {
+                        const int j = __builtin_ctz(m);
+                        float a0, b0;
+                        const int e = ray[j].pair(p, tmin[j], best_t[j], a0, b0);
+                        in_a |= uint32_t(e & 1) << j;
+                        in_b |= uint32_t(e >> 1) << j;
+                        nearer_b += (e == 2 || (e == 3 && b0 < a0)) ? 1 : (e != 0 ? -1 : 0);
+                    }
+                    if (in_a | in_b) {
+                        // The child most of the group enters first, now; the
+                        // other, with its rays, pushed.
+                        const unsigned near_b = in_a == 0 || (in_b != 0 && nearer_b > 0);
+                        const uint32_t far_rays = near_b ? in_a : in_b;
+                        if (far_rays) stack[top++] = {p.link[near_b ^ 1u], far_rays};
+                        n = p.link[near_b];
+                        mask = near_b ? in_b : in_a;
+                        continue;
+                    }
+                } else {
+                    for (uint32_t k = 0; k < n.count(); ++k) {
+                        const uint32_t id = scene.top_order[n.first + k];
+                        const Instance& inst = scene.instances[id];
+                        float ob[kGroup][3], db[kGroup][3], lo[kGroup], limit[kGroup];
+                        int slot[kGroup], count = 0;
+                        for (uint32_t m = mask; m; m &= m - 1) {
+                            const int j = __builtin_ctz(m);
+                            if (!object_ray(inst, o[j], d[j], ob[count], db[count])) continue;
+                            lo[count] = tmin[j];
+                            // One ulp beyond the closest hit, for the tie rule.
+                            limit[count] = best_prim[j] < 0 ? tmax[j] : std::nextafter(best_t[j], kInf);
+                            slot[count++] = j;
+                        }
+                        if (count == 0) continue;
+                        float t[kGroup], u[kGroup], v[kGroup];
+                        int32_t prim[kGroup];
+                        RayBatch batch;
+                        batch.origins = &ob[0][0];
+                        batch.directions = &db[0][0];
+                        batch.tmin = lo;
+                        batch.tmax = limit;
+                        batch.tmin_stride = batch.tmax_stride = 1;
+                        batch.count = size_t(count);
+                        const HitBatch out{t, prim, u, v};
+                        const Bottom& b = bottom[inst.mesh];
+                        b.trace(b.view, batch, out, 0, size_t(count));
+                        for (int c = 0; c < count; ++c) {
+                            if (prim[c] < 0) continue;
+                            const int j = slot[c];
+                            const uint64_t flat = scene.flat_offset[id] + uint64_t(prim[c]);
+                            if (t[c] < best_t[j] || (t[c] == best_t[j] && flat < best_flat[j])) {
+                                best_t[j] = t[c];
+                                best_u[j] = u[c];
+                                best_v[j] = v[c];
+                                best_prim[j] = prim[c];
+                                best_instance[j] = int32_t(id);
+                                best_flat[j] = flat;
+                            }
+                        }
+                    }
+                }
+                mask = 0;
+                while (top > 0 && !mask) {
+                    const Entry e = stack[--top];
+                    n = e.node;
+                    mask = e.rays;
+                }
+            }
+            for (int j = 0; j < g; ++j) {
+                const size_t i = first + size_t(j);
+                hits.t[i] = best_prim[j] >= 0 ? best_t[j] : kInf;
+                hits.prim[i] = best_prim[j];
+                hits.u[i] = best_u[j];
+                hits.v[i] = best_v[j];
+                extra.instance[i] = best_instance[j];
             }
         }
         if (progress) progress->add(units_per_ray * (end - begin));

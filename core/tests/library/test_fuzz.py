@@ -168,6 +168,10 @@ def check_instanced_spec(case: dict) -> None:
     rays = agreement.FamilyRays(flat, RAYS_PER_FAMILY // 2, seed=len(flat))
     for name, (o, d, tmax, ref) in rays.rays.items():
         h = it.intersect(o, d, tmax=tmax, counters=False)
+        packed = it.intersect(o, d, tmax=tmax, counters=False, packets=True)
+        for k in ("t", "prim", "u", "v", "instance"):
+            assert packed[k].tobytes() == h[k].tobytes(), (
+                f"{name}: packets differ in {k}; scene {json.dumps(case)}")
         ours = {"t": h["t"], "prim": h["flat_prim"].astype(np.int32)}
         slack = np.maximum(it.transform_slack(o, d, h["t"], h["instance"]),
                            it.transform_slack(o, d, ref["t"], it.instance_of(ref["prim"])))
