@@ -49,9 +49,8 @@ def instance_under(tree, cursor):
 
 def object_point(tree, instance, point):
     """A world point in `instance`'s object space (where its mesh tree
-    lives): A^-1 (p - b), in double."""
-    m = tree.matrices[instance]
-    return np.linalg.solve(m[:, :3], np.asarray(point, np.float64) - m[:, 3])
+    lives), by the core's inverse, as instance_at carried it."""
+    return tree.to_object(instance, point)
 
 
 def top_geometry(tree, settings):

@@ -271,6 +271,12 @@ class InstancedTree:
         p = np.asarray(points, np.float64)
         return (p @ m[:, :3].T + m[:, 3]).astype(np.float32)
 
+    def to_object(self, instance, points) -> np.ndarray:
+        """World points (..., 3) in `instance`'s object space, by the core's
+        own inverse (the one its rays are carried by), in double."""
+        inv = self._top()["object_from_world"].reshape(-1, 3, 4)[self._instance(instance)]
+        return np.asarray(points, np.float64) @ inv[:, :3].T + inv[:, 3]
+
     def instance_at(self, point):
         """The instance whose mesh tree's box holds the world point (e.g.
         the 3D cursor) - of several, the smallest box's - or None. All
@@ -376,11 +382,13 @@ class InstancedTree:
         its mesh), plus "instance" (-1 on a miss) and "flat_prim" (the index
         in flatten()'s triangles). With counters, COUNTERS hold the bottom
         trees' sums over the instances entered, TOP_COUNTERS the top level's.
-        `packets=True` (with counters=False) gives the same hits, bit for
-        bit: groups of consecutive rays walk the top level together and go
-        through each mesh tree's packet kernel together (a BVH mesh tree
-        traces its packets one ray at a time, as Tree.intersect does);
-        fast when consecutive rays are coherent (render's tiles). Leaf
+        `packets=True` (with counters=False) gives the same hits: groups of
+        consecutive rays walk the top level together and go through each
+        mesh tree's packet kernel together (a BVH mesh tree traces its
+        packets one ray at a time, as Tree.intersect does); fast when
+        consecutive rays are coherent (render's tiles). Bit for bit but on
+        rays lying in a triangle's plane, where a mesh tree's answer may
+        depend on the segment's end (docs/instances.md). Leaf
         culling (`cull=True`) is not offered in two levels."""
         cull, counters, packets = checks.trace_flags(cull, counters, packets)
         if cull:

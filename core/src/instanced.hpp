@@ -137,9 +137,10 @@ struct InstanceHits {
 void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
                          InstanceHits& extra, int threads, Progress* progress = nullptr);
 
-// The same hits, bit for bit, hits only (no counter arrays): groups of
-// consecutive rays walk the top level together and go through each mesh
-// tree's packet kernel together (a BVH mesh tree's: its single rays).
+// The same hits, hits only (no counter arrays): groups of consecutive rays
+// walk the top level together and go through each mesh tree's packet kernel
+// together (a BVH mesh tree's: its single rays). Bit for bit but where a
+// mesh tree's answer depends on the segment's end (below).
 void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& rays,
                                  HitBatch& hits, InstanceHits& extra, int threads,
                                  Progress* progress = nullptr);
