@@ -27,11 +27,15 @@ namespace {
 // The top level's stack: one entry per level (kBvhMaxDepth bounds the depth).
 constexpr int kTopStack = 64 + 1;  // + 1: the walk writes one slot past the top (mask != 3)
 
-// The kernel intersect() would take for a bottom tree, without culling.
-TraceRange bottom_kernel(const Tree& tree, bool counting) {
+// Rays per thread's chunk (and progress step) on both paths.
+constexpr size_t kChunk = 256;
+
+// The kernel intersect() would take for a bottom tree, without culling: its
+// packet kernel on the packet path (a BVH's: its single rays, as intersect's).
+TraceRange bottom_kernel(const Tree& tree, bool counting, bool packets) {
     const KernelSet& k = selected_kernels();
-    return tree.structure == Structure::Bvh ? k.bvh_single_ray[counting]
-                                            : k.single_ray[counting][int(LeafBoxes::None)];
+    if (tree.structure == Structure::Bvh) return k.bvh_single_ray[counting];
+    return packets ? k.packets : k.single_ray[counting][int(LeafBoxes::None)];
 }
 
 // The top level's box test, both children of a node at once in SSE: per
@@ -52,7 +56,7 @@ struct TopRay {
     __m128 org[3], sidir[3], err[3];
     float o[3], inv[3], e[3];
     bool neg[3];
-    int near_off[3], far_off[3];  // in a PairBoxes axis: the near faces' lanes, the far faces'
+    int near_off[3], far_off[3];  // in a TopLevel::Pair axis: the near faces' lanes, the far faces'
 
     TopRay() = default;
     TopRay(const float* of, const float* df, float scene_max) {
@@ -125,6 +129,36 @@ bool object_ray(const Instance& inst, const double o[3], const double d[3], floa
     return representable && (db[0] != 0.0f || db[1] != 0.0f || db[2] != 0.0f);
 }
 
+// A ray's closest hit over the instances so far.
+struct Closest {
+    float t = kInf, u = 0, v = 0;
+    int32_t prim = -1, instance = -1;
+    uint64_t flat = std::numeric_limits<uint64_t>::max();
+
+    // The segment's end for the next instance: one ulp beyond the closest
+    // hit, so that a hit at the same t comes back and the tie rule can take it.
+    float limit(float tmax) const { return prim < 0 ? tmax : std::nextafter(t, kInf); }
+    // The nearer hit, and of equal t the smaller flattened index (the
+    // flattened scene's tie rule between instances).
+    void take(float ht, float hu, float hv, int32_t hprim, uint32_t id, uint64_t hflat) {
+        if (ht < t || (ht == t && hflat < flat)) {
+            t = ht;
+            u = hu;
+            v = hv;
+            prim = hprim;
+            instance = int32_t(id);
+            flat = hflat;
+        }
+    }
+    void write(HitBatch& hits, InstanceHits& extra, size_t i) const {
+        hits.t[i] = prim >= 0 ? t : kInf;
+        hits.prim[i] = prim;
+        hits.u[i] = u;
+        hits.v[i] = v;
+        extra.instance[i] = instance;
+    }
+};
+
 // The scene's largest coordinate: the top level's crossing bound (TopRay).
 float scene_max_of(const InstancedScene& scene) {
     float m = 0.0f;
@@ -145,11 +179,11 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
         throw std::invalid_argument("intersect_instanced: give all the counter arrays or none");
     std::vector<Bottom> bottom;
     bottom.reserve(scene.meshes.size());
-    for (const Tree* t : scene.meshes) bottom.push_back({bottom_kernel(*t, counting), make_tree_view(*t)});
+    for (const Tree* t : scene.meshes)
+        bottom.push_back({bottom_kernel(*t, counting, false), make_tree_view(*t)});
     const TopLevel::Pair* pairs = scene.top.pairs.data();
     const float scene_max = scene_max_of(scene);
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
-    constexpr size_t kChunk = 256;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
         if (progress) progress->check();
         for (size_t i = begin; i < end; ++i) {
@@ -159,9 +193,8 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
             const float tmax = rays.tmax[i * rays.tmax_stride];
             const double o[3] = {of[0], of[1], of[2]}, d[3] = {df[0], df[1], df[2]};
             const TopRay ray(of, df, scene_max);
-            float best_t = tmax, best_u = 0, best_v = 0;
-            int32_t best_prim = -1, best_instance = -1;
-            uint64_t best_flat = std::numeric_limits<uint64_t>::max();
+            Closest best;
+            best.t = tmax;
             uint32_t top_steps = 0, visits = 0, steps = 0, general = 0, tests = 0, culled = 0,
                      box_tests = 0;
             struct Entry {
@@ -202,15 +235,15 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                     // take 365 ns with 10 % more instructions (callgrind
                     // 2,896 -> 3,172 a ray). The visits, their order and
                     // every test's result are the same: no leaf comes
-                    // between a node and its child, so best_t is too.
+                    // between a node and its child, so best.t is too.
                     const TopLevel::Pair& p = TopLevel::pair_of(pairs, n.left());
                     const TopLevel::Pair* child[2] = {
                         &TopLevel::pair_of(pairs, p.link[0].is_leaf() ? 1u : p.link[0].left()),
                         &TopLevel::pair_of(pairs, p.link[1].is_leaf() ? 1u : p.link[1].left())};
                     float a0, b0, ca0[2], cb0[2];
-                    const int mask = ray.pair(p, tmin, best_t, a0, b0);
-                    const int cmask[2] = {ray.pair(*child[0], tmin, best_t, ca0[0], cb0[0]),
-                                          ray.pair(*child[1], tmin, best_t, ca0[1], cb0[1])};
+                    const int mask = ray.pair(p, tmin, best.t, a0, b0);
+                    const int cmask[2] = {ray.pair(*child[0], tmin, best.t, ca0[0], cb0[0]),
+                                          ray.pair(*child[1], tmin, best.t, ca0[1], cb0[1])};
                     if (mask != 0) {
                         const unsigned c = descend(p, mask, a0, b0);
                         n = p.link[c];
@@ -228,9 +261,7 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                         float ob[3], db[3];
                         if (!object_ray(inst, o, d, ob, db)) continue;
                         ++visits;
-                        // Beyond the closest hit by one ulp, so that a hit at the
-                        // same t comes back and the tie rule can take it.
-                        const float limit = best_prim < 0 ? tmax : std::nextafter(best_t, kInf);
+                        const float limit = best.limit(tmax);
                         float t, u, v;
                         int32_t prim;
                         uint32_t c[5] = {0, 0, 0, 0, 0};
@@ -252,16 +283,8 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                         b.trace(b.view, one, out, 0, 1);
                         steps += c[0], general += c[1], tests += c[2], culled += c[3];
                         box_tests += c[4];
-                        if (prim < 0) continue;
-                        const uint64_t flat = scene.flat_offset[id] + uint64_t(prim);
-                        if (t < best_t || (t == best_t && flat < best_flat)) {
-                            best_t = t;
-                            best_u = u;
-                            best_v = v;
-                            best_prim = prim;
-                            best_instance = int32_t(id);
-                            best_flat = flat;
-                        }
+                        if (prim >= 0)
+                            best.take(t, u, v, prim, id, scene.flat_offset[id] + uint64_t(prim));
                     }
                 }
                 // The next pushed box entered before the closest hit (equal
@@ -269,17 +292,13 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                 live = false;
                 while (top > 0) {
                     const Entry e = stack[--top];
-                    if (e.t0 > best_t) continue;
+                    if (e.t0 > best.t) continue;
                     n = e.node;
                     live = true;
                     break;
                 }
             }
-            hits.t[i] = best_prim >= 0 ? best_t : kInf;
-            hits.prim[i] = best_prim;
-            hits.u[i] = best_u;
-            hits.v[i] = best_v;
-            extra.instance[i] = best_instance;
+            best.write(hits, extra, i);
             if (counting) {
                 hits.steps[i] = steps;
                 hits.general_steps[i] = general;
@@ -302,17 +321,13 @@ void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& ra
     if (hits.steps || extra.top_steps || extra.instance_visits)
         throw std::invalid_argument(
             "intersect: packets trace hits only; pass counters=False with packets=True");
-    // Each mesh tree's packet kernel (a BVH's: its single rays, as intersect's).
-    const KernelSet& ks = selected_kernels();
     std::vector<Bottom> bottom;
     bottom.reserve(scene.meshes.size());
     for (const Tree* t : scene.meshes)
-        bottom.push_back({t->structure == Structure::Bvh ? ks.bvh_single_ray[0] : ks.packets,
-                          make_tree_view(*t)});
+        bottom.push_back({bottom_kernel(*t, false, true), make_tree_view(*t)});
     const TopLevel::Pair* pairs = scene.top.pairs.data();
     const float scene_max = scene_max_of(scene);
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
-    constexpr size_t kChunk = 256;
     static_assert(kChunk % kGroup == 0, "groups stay inside a thread's chunk");
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
         if (progress) progress->check();
@@ -336,9 +351,8 @@ void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& ra
             const int g = int(std::min<size_t>(kGroup, end - first));
             TopRay ray[kGroup];
             double o[kGroup][3], d[kGroup][3];
-            float tmin[kGroup], tmax[kGroup], best_t[kGroup], best_u[kGroup], best_v[kGroup];
-            int32_t best_prim[kGroup], best_instance[kGroup];
-            uint64_t best_flat[kGroup];
+            float tmin[kGroup], tmax[kGroup];
+            Closest best[kGroup];
             uint32_t mask = 0;
             for (int j = 0; j < g; ++j) {
                 const size_t i = first + size_t(j);
@@ -348,10 +362,7 @@ void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& ra
                 tmin[j] = rays.tmin[i * rays.tmin_stride];
                 tmax[j] = rays.tmax[i * rays.tmax_stride];
                 ray[j] = TopRay(of, df, scene_max);
-                best_t[j] = tmax[j];
-                best_u[j] = best_v[j] = 0.0f;
-                best_prim[j] = best_instance[j] = -1;
-                best_flat[j] = std::numeric_limits<uint64_t>::max();
+                best[j].t = tmax[j];
                 float t0 = tmin[j], t1 = tmax[j];
                 if (!scene.top.empty() && ray[j].clip(scene.top.root, t0, t1)) mask |= 1u << j;
             }
@@ -369,7 +380,7 @@ void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& ra
                     for (uint32_t m = mask; m; m &= m - 1) {
                         const int j = __builtin_ctz(m);
                         float a0, b0;
-                        const int e = ray[j].pair(p, tmin[j], best_t[j], a0, b0);
+                        const int e = ray[j].pair(p, tmin[j], best[j].t, a0, b0);
                         in_a |= uint32_t(e & 1) << j;
                         in_b |= uint32_t(e >> 1) << j;
                         nearer_b += (e == 2 || (e == 3 && b0 < a0)) ? 1 : (e != 0 ? -1 : 0);
@@ -394,8 +405,7 @@ void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& ra
                             const int j = __builtin_ctz(m);
                             if (!object_ray(inst, o[j], d[j], ob[count], db[count])) continue;
                             lo[count] = tmin[j];
-                            // One ulp beyond the closest hit, for the tie rule.
-                            limit[count] = best_prim[j] < 0 ? tmax[j] : std::nextafter(best_t[j], kInf);
+                            limit[count] = best[j].limit(tmax[j]);
                             slot[count++] = j;
                         }
                         if (count == 0) continue;
@@ -411,19 +421,10 @@ void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& ra
                         const HitBatch out{t, prim, u, v};
                         const Bottom& b = bottom[inst.mesh];
                         b.trace(b.view, batch, out, 0, size_t(count));
-                        for (int c = 0; c < count; ++c) {
-                            if (prim[c] < 0) continue;
-                            const int j = slot[c];
-                            const uint64_t flat = scene.flat_offset[id] + uint64_t(prim[c]);
-                            if (t[c] < best_t[j] || (t[c] == best_t[j] && flat < best_flat[j])) {
-                                best_t[j] = t[c];
-                                best_u[j] = u[c];
-                                best_v[j] = v[c];
-                                best_prim[j] = prim[c];
-                                best_instance[j] = int32_t(id);
-                                best_flat[j] = flat;
-                            }
-                        }
+                        for (int c = 0; c < count; ++c)
+                            if (prim[c] >= 0)
+                                best[slot[c]].take(t[c], u[c], v[c], prim[c], id,
+                                                   scene.flat_offset[id] + uint64_t(prim[c]));
                     }
                 }
                 mask = 0;
@@ -433,14 +434,7 @@ void intersect_instanced_packets(const InstancedScene& scene, const RayBatch& ra
                     mask = e.rays;
                 }
             }
-            for (int j = 0; j < g; ++j) {
-                const size_t i = first + size_t(j);
-                hits.t[i] = best_prim[j] >= 0 ? best_t[j] : kInf;
-                hits.prim[i] = best_prim[j];
-                hits.u[i] = best_u[j];
-                hits.v[i] = best_v[j];
-                extra.instance[i] = best_instance[j];
-            }
+            for (int j = 0; j < g; ++j) best[j].write(hits, extra, first + size_t(j));
         }
         if (progress) progress->add(units_per_ray * (end - begin));
     });
