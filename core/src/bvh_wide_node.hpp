@@ -1,19 +1,23 @@
-// A node of the BVH's 4-wide traversal layout (Tree::bvh_wide): the
-// children of up to two levels of the binary tree (bvh_node.hpp) collapsed
-// into one node (builders/bvh_collapse.hpp), 128 bytes, two cache lines.
+// A node of the BVH's 8-wide traversal layout (Tree::bvh_wide): up to
+// eight nodes of the binary tree (bvh_node.hpp) below one binary node,
+// collapsed into one node (builders/bvh_collapse.hpp), 256 bytes, four
+// cache lines.
 //
 // The children's boxes are stored axis by axis (lo[k][lane], hi[k][lane]):
-// one aligned load per face gives that face of all four children, so one
-// node costs six loads and one four-lane slab test (kernels/
-// bvh_wide_single_ray.hpp) where the binary walk takes two pair tests and
-// two nodes' worth of cache lines. Per lane:
+// one aligned load per face gives that face of all eight children, so one
+// node costs six loads and one eight-lane slab test (kernels/
+// bvh_wide_single_ray.hpp) where the binary walk takes up to seven pair
+// tests and as many nodes' cache lines. Per lane:
 //   interior  count = kInterior, child = the wide node's index;
 //   leaf      count = its triangles, child = their offset in refs[];
 //   unused    an inverted box (+inf, -inf) that no ray enters, count 0.
 // A leaf's `child` also indexes Tree::bvh_leaf_tris, its triangles copied
 // in leaf order with their indices (BvhLeafTriangle).
-// Why 4 lanes and not Embree's 8: SSE is on every x86-64, so one node
-// layout serves every instruction-set level (docs/performance.md, "The BVH").
+// Why 8 lanes, as Embree's: an AVX register holds a face of all eight
+// children, so the AVX2 and AVX-512 levels test a node in one instruction
+// per step of the slab test, and the SSE level in two; and a ray visits
+// about two thirds of the 4-wide layout's nodes (docs/performance.md, "The
+// BVH", has both layouts' figures).
 #pragma once
 #include <cassert>
 #include <cstdint>
@@ -24,7 +28,7 @@
 namespace bsp {
 
 struct alignas(64) BvhWideNode {
-    static constexpr int kWidth = 4;
+    static constexpr int kWidth = 8;
     static constexpr uint32_t kInterior = 0xFFFFFFFFu;
 
     float lo[3][kWidth];
@@ -70,7 +74,7 @@ struct alignas(64) BvhWideNode {
         count[lane] = n;
     }
 };
-static_assert(sizeof(BvhWideNode) == 128, "wide BVH nodes must stay 128 bytes");
+static_assert(sizeof(BvhWideNode) == 256, "wide BVH nodes must stay 256 bytes");
 
 // A triangle of a wide leaf, copied in leaf order with its index: a leaf's
 // triangles side by side, and no read of refs[] to learn which they are

@@ -2,9 +2,8 @@
 section 8; issue 23).
 
 Embree is a black box: a time and nothing to count. Our BVH is the structure
-Embree builds (a binned-SAH bounding-volume hierarchy, collapsed to 4-wide
-nodes here where Embree's are 8 wide), traced by our own kernel with our
-counters. So on the
+Embree builds (a binned-SAH bounding-volume hierarchy, collapsed to 8-wide
+nodes as Embree's are), traced by our own kernel with our counters. So on the
 same rays, in the same paired rounds, one thread, hits only:
 
 * our BVH ÷ Embree is the price of our **kernel** (same kind of structure);
@@ -155,8 +154,7 @@ def headline(scenes: list[dict]) -> str:
     if share < 0:
         # kd's planes beat our BVH on our kernel: the kernel is more than the gap.
         return (text + split_text + ": none of it is the structure, since kd's planes beat "
-                "our 4-wide BVH on the same kernel; the gap is the kernel's (and the width "
-                "of Embree's nodes), and more.")
+                "our 8-wide BVH on the same kernel; the gap is the kernel's, and more.")
     if share > 1:
         return (text + split_text + ": all of it is the structure, since our BVH is faster "
                 "than Embree.")
@@ -207,11 +205,12 @@ def section(gap: dict | None, number: int) -> list[str]:
         f"directions on the sphere), {gap['rounds']} paired rounds with Embree, one thread, "
         f"the hits-only path; started {gap.get('started', '?')}, "
         f"{gap.get('minutes', 0):.1f} min.", "",
-        "Our BVH is a binned-SAH hierarchy collapsed into 4-wide nodes (one SSE test for "
-        "four child boxes) traced by this project's kernel; Embree's is 8 wide with an "
-        "8-wide SIMD kernel. So `our BVH ÷ Embree` prices our kernel and layout against "
-        "Embree's on the same kind of structure, and `kd ÷ our BVH` the structure on our "
-        "kernel (binary planes against 4-wide boxes: the width is part of it); their product is `kd ÷ Embree`, round by round. The "
+        "Our BVH is a binned-SAH hierarchy collapsed into 8-wide nodes (one AVX test for "
+        "eight child boxes, two SSE tests on CPUs without AVX) traced by this project's "
+        "kernel; Embree's is 8 wide too, with its own 8-wide SIMD kernel. So `our BVH ÷ "
+        "Embree` prices our kernel and layout against Embree's on the same kind of "
+        "structure, and `kd ÷ our BVH` the structure on our kernel (binary planes against "
+        "8-wide boxes: the width is part of it); their product is `kd ÷ Embree`, round by round. The "
         "shares split log(kd ÷ Embree): a negative structure share means kd's planes are "
         "faster than our BVH on our kernel (the kernel then accounts for more than the whole "
         f"gap); `—` where kd is less than {MIN_GAP:.2f}× slower than Embree (a gap within the "

@@ -442,7 +442,7 @@ BEST_KD_METHODS = ("bsp_wn+kd", "bsp_cn+kd")
 
 SIDE_BY_SIDE = ("The three structures on one kernel against Embree: kd, the faster of the "
                 "normal-based ^Kd trees (`best ^Kd`, chosen per scene and rays by its "
-                "hits-only time) and the BVH (`bvh`: binned SAH, 4-wide nodes, no K), each traced "
+                "hits-only time) and the BVH (`bvh`: binned SAH, 8-wide nodes, no K), each traced "
                 "on the hits-only single-ray path in the same rounds as Embree. `× Embree "
                 "speed` is Embree's time over the tree's (above 1: faster than Embree); "
                 "`kd ÷ BVH` and `best ÷ BVH` the per-round time ratios to the BVH (above 1: "

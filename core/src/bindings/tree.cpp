@@ -55,8 +55,10 @@ nb::dict stats(const Tree& tree) {
     d["node_bytes"] = uint64_t(tree.nodes.size() * sizeof(Node) +
                                tree.bvh_nodes.size() * sizeof(BvhNode));
     d["structure"] = structure_name(tree.structure);
-    // A BVH's 4-wide layout (the hits-only walk's): its nodes, and the bytes
-    // of those and of the triangles copied in leaf order (in "bytes" too).
+    // A BVH's wide layout (the one every path walks): its lanes per node,
+    // its nodes, and the bytes of those and of the triangles copied in leaf
+    // order (in "bytes" too).
+    d["wide_width"] = uint64_t(tree.structure == Structure::Bvh ? BvhWideNode::kWidth : 0);
     d["wide_nodes"] = uint64_t(tree.bvh_wide.size());
     d["wide_bytes"] = uint64_t(tree.bvh_wide.size() * sizeof(BvhWideNode) +
                                tree.bvh_wide_binary.size() * sizeof(uint32_t) +

@@ -356,10 +356,11 @@ Tree build_bvh_tree(std::vector<Triangle> triangles, const BuildOptions& options
     BuildStats& st = tree.stats;
     tree.bvh_nodes = std::move(r.nodes);
     tree.refs = std::move(r.order);
-    // Its 4-wide collapse, which the hits-only path traces (about one wide
-    // node per three binary interior nodes).
-    budget.charge(tree.bvh_nodes.size() / 6 * (sizeof(BvhWideNode) + 4 * sizeof(uint32_t)), -1,
-                  "the wide BVH");
+    // Its wide collapse, which every path traces (about one wide node per
+    // kWidth - 1 binary interior nodes, half the nodes being leaves).
+    budget.charge(tree.bvh_nodes.size() / (2 * (BvhWideNode::kWidth - 1)) *
+                      (sizeof(BvhWideNode) + BvhWideNode::kWidth * sizeof(uint32_t)),
+                  -1, "the wide BVH");
     tree.bvh_wide = collapse_bvh(tree.bvh_nodes, &tree.bvh_wide_binary);
     budget.charge(tree.refs.size() * sizeof(BvhLeafTriangle), -1, "the triangles in leaf order");
     tree.bvh_leaf_tris.reserve(tree.refs.size());

@@ -64,8 +64,8 @@ std::vector<BvhWideNode> collapse_bvh(const std::vector<BvhNode>& binary,
         if (binary_of) binary_of->assign(BvhWideNode::kWidth, 0);
         return out;
     }
-    // About one wide node per three binary interior nodes.
-    out.reserve(binary.size() / 6 + 1);
+    // About one wide node per kWidth - 1 binary interior nodes.
+    out.reserve(binary.size() / (2 * (BvhWideNode::kWidth - 1)) + 1);
     if (binary_of) binary_of->reserve(out.capacity() * BvhWideNode::kWidth);
     Collapser{binary, out, binary_of}.emit(0);
     return out;

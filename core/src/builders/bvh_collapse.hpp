@@ -1,5 +1,5 @@
-// The binary BVH collapsed into 4-wide nodes (bvh_wide_node.hpp) for the
-// hits-only traversal (kernels/bvh_wide_single_ray.hpp).
+// The binary BVH collapsed into 8-wide nodes (bvh_wide_node.hpp) for the
+// traversal of every path (kernels/bvh_wide_single_ray.hpp).
 //
 // Greedy, top down (as Embree's and tinybvh's wide builders from binary
 // trees): a wide node starts from a binary node's two children and, while it
@@ -20,7 +20,7 @@ namespace bsp {
 // Wide nodes in depth-first order, the root first. A binary tree that is a
 // single leaf (the empty tree, or one triangle) becomes one wide node whose
 // lane 0 is that leaf.
-// binary_of, when given, receives each lane's binary node (4 per wide node;
+// binary_of, when given, receives each lane's binary node (kWidth per wide node;
 // an unused lane's is 0).
 std::vector<BvhWideNode> collapse_bvh(const std::vector<BvhNode>& binary,
                                       std::vector<uint32_t>* binary_of = nullptr);

@@ -113,8 +113,9 @@ public:
     void box_test(uint32_t n) { path_.n_box_tests += n; }
 
 private:
-    // A 4-wide node opens at most two of its binary nodes' children: its
-    // lanes lie at most three levels below the binary node it stands for.
+    // A wide node of W lanes opens at most W - 2 of its binary nodes'
+    // children: its lanes lie at most W - 1 levels below the binary node it
+    // stands for.
     static constexpr int kLaneLevels = BvhWideNode::kWidth - 1;
 
     void set_depths(uint32_t index, int32_t depth, int levels) {

@@ -77,12 +77,17 @@ inline bool intersect_triangle(const ShearedRay& r, const Triangle& tri, float t
     float W = Bx * Ay - By * Ax;
     // On an edge the single-precision edge function can round to zero;
     // recompute those in double so that the edge is decided consistently.
-    if (U == 0.0f || V == 0.0f || W == 0.0f) {
+    // (Bitwise | and &, not || and &&: one branch each where short-circuit
+    // evaluation took up to three, which mispredicted about once a test on
+    // incoherent rays - callgrind, sportscar, random rays, the BVH.)
+    if ((U == 0.0f) | (V == 0.0f) | (W == 0.0f)) {
         U = float(double(Cx) * double(By) - double(Cy) * double(Bx));
         V = float(double(Ax) * double(Cy) - double(Ay) * double(Cx));
         W = float(double(Bx) * double(Ay) - double(By) * double(Ax));
     }
-    if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
+    const bool negative = (U < 0.0f) | (V < 0.0f) | (W < 0.0f);
+    const bool positive = (U > 0.0f) | (V > 0.0f) | (W > 0.0f);
+    if (negative & positive) return false;
     const float det = U + V + W;
     if (det == 0.0f) return false;
     // The edge functions decide hit or miss (watertight). The distance comes

@@ -103,10 +103,11 @@ def test_the_tree_is_what_its_stats_say():
     interior = bits == 0xFFFFFFFF
     assert len(bits) == s["nodes"] == 2 * s["leaves"] - 1
     assert s["node_bytes"] == 32 * s["nodes"]
-    # The binary nodes, refs and triangles, plus the 4-wide layout the walk
-    # traces: 128-byte nodes, each lane's binary node (for the counters) and
+    # The binary nodes, refs and triangles, plus the 8-wide layout the walk
+    # traces: 256-byte nodes, each lane's binary node (for the counters) and
     # the triangles in leaf order.
-    assert s["wide_bytes"] == (128 + 16) * s["wide_nodes"] + 40 * s["references"]
+    assert s["wide_width"] == 8
+    assert s["wide_bytes"] == (256 + 32) * s["wide_nodes"] + 40 * s["references"]
     assert s["bytes"] == 32 * s["nodes"] + 4 * s["references"] + 36 * s["triangles"] + s["wide_bytes"]
     assert 0 < s["wide_nodes"] < s["interior_nodes"] / 2
     assert s["kd_nodes"] == s["general_nodes"] == 0 and s["interior_nodes"] == interior.sum()
@@ -280,10 +281,10 @@ def test_counters_of_a_bvh_and_of_a_kd_tree():
         assert set(COUNTERS) <= set(h) and "box_tests" in COUNTERS
         assert (k["box_tests"] == 0).all() and (h["general_steps"] == 0).all()
         assert (h["culled"] == 0).all()
-        # One box test at the root, four at every wide node visited (the
-        # walk of the 4-wide layout, all four lanes in one test).
+        # One box test at the root, eight at every wide node visited (the
+        # walk of the 8-wide layout, all eight lanes in one test).
         entered = h["steps"] > 0
-        assert (h["box_tests"][entered] % 4 == 1).all()
+        assert (h["box_tests"][entered] % 8 == 1).all()
         assert (h["box_tests"][entered] > 1).all()
         assert (h["steps"] <= h["box_tests"]).all()
         # Culling is a no-op on a BVH: the same answers and counts.

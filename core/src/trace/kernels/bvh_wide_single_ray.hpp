@@ -1,6 +1,6 @@
-// The BVH's hits-only single-ray kernel: the walk of the 4-wide nodes
+// The BVH's single-ray kernel: the walk of the 8-wide nodes
 // (bvh_wide_node.hpp) that builders/bvh_collapse.cpp makes of the binary
-// tree. At each node one four-lane slab test gives every child's range; the
+// tree. At each node one eight-lane slab test gives every child's range; the
 // children entered are visited nearest first (the others pushed, farthest
 // first), with early exit, the same walk start, the same triangle test, the
 // same leaf acceptance and the same tie rule as the binary walk
@@ -31,7 +31,7 @@
 #include <cmath>
 #include <cstddef>
 
-#include <xmmintrin.h>
+#include <immintrin.h>
 
 #include "bvh_wide_node.hpp"
 #include "trace/kernels/bvh_single_ray.hpp"
@@ -43,50 +43,120 @@
 namespace bsp::BSPLAB_ISA_NS {
 namespace {
 
-// Up to three children pushed per level, one level per binary level at most.
-constexpr int kBvhWideStack = 3 * 64 + 4;
+constexpr int kWidth = BvhWideNode::kWidth;
+static_assert(kWidth == 8, "the lane vectors below hold eight floats");
+
+// Up to kWidth - 1 children pushed per wide node, one wide node per binary
+// level at most.
+constexpr int kBvhWideStack = (kWidth - 1) * 64 + kWidth;
 
 struct WideStackEntry {
     uint32_t child, count;  // a wide node (count = kInterior) or a leaf's refs[] slice
     float tmin, tmax;
-    uint32_t lane;  // 4 x its wide node + its lane: its binary node, for the counters
+    uint32_t lane;  // kWidth x its wide node + its lane: its binary node, for the counters
 };
 
-// The four-lane slab test (see the file's comment).
-struct BvhQuadTest {
-    __m128 org[3], idir[3], err[3];
+// One face of the eight children: one AVX register on the AVX2 and AVX-512
+// levels, two SSE registers on the SSE level. Each operation is the same
+// IEEE single operation lane by lane on every level (MAXPS and MINPS
+// included, with their operand order), so every level's walk is the same.
+#if defined(__AVX__)
+struct LaneFloats {
+    __m256 v;
+    static LaneFloats load(const char* p) { return {_mm256_load_ps(reinterpret_cast<const float*>(p))}; }
+    static LaneFloats all(float x) { return {_mm256_set1_ps(x)}; }
+    friend LaneFloats operator-(LaneFloats a, LaneFloats b) { return {_mm256_sub_ps(a.v, b.v)}; }
+    friend LaneFloats operator+(LaneFloats a, LaneFloats b) { return {_mm256_add_ps(a.v, b.v)}; }
+    friend LaneFloats operator*(LaneFloats a, LaneFloats b) { return {_mm256_mul_ps(a.v, b.v)}; }
+    // MAXPS / MINPS: b where a is NaN, and where both are zeros.
+    friend LaneFloats max_of(LaneFloats a, LaneFloats b) { return {_mm256_max_ps(a.v, b.v)}; }
+    friend LaneFloats min_of(LaneFloats a, LaneFloats b) { return {_mm256_min_ps(a.v, b.v)}; }
+    friend int le_bits(LaneFloats a, LaneFloats b) {
+        return _mm256_movemask_ps(_mm256_cmp_ps(a.v, b.v, _CMP_LE_OQ));
+    }
+    friend int gt_bits(LaneFloats a, LaneFloats b) {
+        return _mm256_movemask_ps(_mm256_cmp_ps(a.v, b.v, _CMP_GT_OQ));
+    }
+    friend int eq_bits(LaneFloats a, LaneFloats b) {
+        return _mm256_movemask_ps(_mm256_cmp_ps(a.v, b.v, _CMP_EQ_OQ));
+    }
+    void store(float* out) const { _mm256_store_ps(out, v); }
+};
+#else
+struct LaneFloats {
+    __m128 a, b;
+    static LaneFloats load(const char* p) {
+        const float* f = reinterpret_cast<const float*>(p);
+        return {_mm_load_ps(f), _mm_load_ps(f + 4)};
+    }
+    static LaneFloats all(float x) { return {_mm_set1_ps(x), _mm_set1_ps(x)}; }
+    friend LaneFloats operator-(LaneFloats x, LaneFloats y) { return {_mm_sub_ps(x.a, y.a), _mm_sub_ps(x.b, y.b)}; }
+    friend LaneFloats operator+(LaneFloats x, LaneFloats y) { return {_mm_add_ps(x.a, y.a), _mm_add_ps(x.b, y.b)}; }
+    friend LaneFloats operator*(LaneFloats x, LaneFloats y) { return {_mm_mul_ps(x.a, y.a), _mm_mul_ps(x.b, y.b)}; }
+    friend LaneFloats max_of(LaneFloats x, LaneFloats y) { return {_mm_max_ps(x.a, y.a), _mm_max_ps(x.b, y.b)}; }
+    friend LaneFloats min_of(LaneFloats x, LaneFloats y) { return {_mm_min_ps(x.a, y.a), _mm_min_ps(x.b, y.b)}; }
+    friend int le_bits(LaneFloats x, LaneFloats y) {
+        return _mm_movemask_ps(_mm_cmple_ps(x.a, y.a)) | (_mm_movemask_ps(_mm_cmple_ps(x.b, y.b)) << 4);
+    }
+    friend int gt_bits(LaneFloats x, LaneFloats y) {
+        return _mm_movemask_ps(_mm_cmpgt_ps(x.a, y.a)) | (_mm_movemask_ps(_mm_cmpgt_ps(x.b, y.b)) << 4);
+    }
+    friend int eq_bits(LaneFloats x, LaneFloats y) {
+        return _mm_movemask_ps(_mm_cmpeq_ps(x.a, y.a)) | (_mm_movemask_ps(_mm_cmpeq_ps(x.b, y.b)) << 4);
+    }
+    void store(float* out) const {
+        _mm_store_ps(out, a);
+        _mm_store_ps(out + 4, b);
+    }
+};
+#endif
+
+// A pushed item's first bytes - a wide node's four cache lines, or a leaf's
+// first triangles - asked of memory when it is pushed, not when it is
+// popped: on incoherent rays most nodes are not in cache, and a pushed item
+// is usually popped a few nodes later, so its misses overlap the walk of
+// the nearer subtree instead of stalling it.
+inline void prefetch_item(const BvhWideNode* nodes, const BvhLeafTriangle* leaf_tris,
+                          uint32_t child, uint32_t count) {
+    const char* at = count == BvhWideNode::kInterior
+                         ? reinterpret_cast<const char*>(nodes + child)
+                         : reinterpret_cast<const char*>(leaf_tris + child);
+    for (int line = 0; line < 4; ++line) _mm_prefetch(at + 64 * line, _MM_HINT_T0);
+}
+
+// The eight-lane slab test (see the file's comment).
+struct BvhLaneTest {
+    LaneFloats org[3], idir[3], err[3];
     // Byte offsets in a node of each axis's near and far faces: the high one
     // is near where d[k] < 0 (or -0). Chosen once per ray, so that the node
     // test loads the faces it needs and selects nothing.
     size_t near_at[3], far_at[3];
 
-    explicit BvhQuadTest(const BvhRay& r) {
+    explicit BvhLaneTest(const BvhRay& r) {
         for (int k = 0; k < 3; ++k) {
-            org[k] = _mm_set1_ps(r.org[k]);
-            idir[k] = _mm_set1_ps(r.idir[k]);
-            err[k] = _mm_set1_ps(r.err[k]);
-            const size_t lo = offsetof(BvhWideNode, lo) + k * sizeof(float[4]),
-                         hi = offsetof(BvhWideNode, hi) + k * sizeof(float[4]);
+            org[k] = LaneFloats::all(r.org[k]);
+            idir[k] = LaneFloats::all(r.idir[k]);
+            err[k] = LaneFloats::all(r.err[k]);
+            const size_t lo = offsetof(BvhWideNode, lo) + k * sizeof(float[kWidth]),
+                         hi = offsetof(BvhWideNode, hi) + k * sizeof(float[kWidth]);
             near_at[k] = r.neg[k] ? hi : lo;
             far_at[k] = r.neg[k] ? lo : hi;
         }
     }
 
     // The lanes the ray enters within [s0, s1]; their ranges in enter/exit.
-    int test(const BvhWideNode& n, float s0, float s1, __m128& enter, __m128& exit) const {
-        __m128 en = _mm_set1_ps(s0), ex = _mm_set1_ps(s1);
+    int test(const BvhWideNode& n, float s0, float s1, float* enter, float* exit) const {
+        LaneFloats en = LaneFloats::all(s0), ex = LaneFloats::all(s1);
         const char* base = reinterpret_cast<const char*>(&n);
         for (int k = 0; k < 3; ++k) {
-            const __m128 nearf = _mm_load_ps(reinterpret_cast<const float*>(base + near_at[k]));
-            const __m128 farf = _mm_load_ps(reinterpret_cast<const float*>(base + far_at[k]));
-            const __m128 tn = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(nearf, org[k]), idir[k]), err[k]);
-            const __m128 tf = _mm_add_ps(_mm_mul_ps(_mm_sub_ps(farf, org[k]), idir[k]), err[k]);
-            en = _mm_max_ps(tn, en);
-            ex = _mm_min_ps(tf, ex);
+            const LaneFloats nearf = LaneFloats::load(base + near_at[k]);
+            const LaneFloats farf = LaneFloats::load(base + far_at[k]);
+            en = max_of((nearf - org[k]) * idir[k] - err[k], en);
+            ex = min_of((farf - org[k]) * idir[k] + err[k], ex);
         }
-        enter = en;
-        exit = ex;
-        return _mm_movemask_ps(_mm_cmple_ps(en, ex));
+        en.store(enter);
+        ex.store(exit);
+        return le_bits(en, ex);
     }
 };
 
@@ -94,7 +164,7 @@ struct BvhQuadTest {
 // see the binary nodes the walk enters: the root, then every lane the walk
 // takes, interior or leaf (so steps are the nodes visited, as on the
 // binary walk, without the levels the wide nodes skip), and the box tests
-// of the wide nodes visited, four each, plus the root's box.
+// of the wide nodes visited, eight each, plus the root's box.
 template <class Counters>
 __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tree, const Vec3& o,
                                                               const Vec3& d, float tmin,
@@ -120,7 +190,7 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
     }
     const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
                           walk.test_t);
-    const BvhQuadTest quad(ray);
+    const BvhLaneTest lanes(ray);
     const float pad = tree.cull_pad + walk.slack;
     const BvhLeafTriangle* leaf_tris = tree.bvh_leaf_tris;
     const BvhWideNode* nodes = tree.bvh_wide;
@@ -138,18 +208,13 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
         if (count == BvhWideNode::kInterior) {
             const BvhWideNode& node = nodes[child];
             count_.box_test(BvhWideNode::kWidth);
-            __m128 en4, ex4;
-            int mask = quad.test(node, s_lo, std::min(s_hi, hit.reach), en4, ex4);
-            alignas(16) float en[4], ex[4];
-            _mm_store_ps(en, en4);
-            _mm_store_ps(ex, ex4);
+            alignas(32) float en[kWidth], ex[kWidth];
+            const int mask = lanes.test(node, s_lo, std::min(s_hi, hit.reach), en, ex);
             if (mask != 0) {
                 // The nearest entered lane is taken now; the others are
-                // pushed farthest first, so that they pop nearest first. One
-                // and two lanes - most nodes of incoherent rays - are decided
-                // without the general sort, whose loops mispredicted about
-                // twice per node (callgrind, bunny, random rays); the order
-                // is the sort's (ties: the higher lane is taken first).
+                // pushed farthest first, so that they pop nearest first
+                // (ties: the higher lane is taken first). One and two lanes
+                // - most nodes of incoherent rays - are decided apart.
                 unsigned rest = unsigned(mask);
                 const int l0 = __builtin_ctz(rest);
                 rest &= rest - 1;
@@ -163,21 +228,37 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                         take = first_nearer ? l0 : l1;
                         stack[top++] = {node.child[push], node.count[push], en[push], ex[push],
                                         BvhWideNode::kWidth * child + uint32_t(push)};
+                        prefetch_item(nodes, leaf_tris, node.child[push], node.count[push]);
                     } else {
-                        int lanes[4] = {l0, l1, 0, 0}, k = 2;
-                        while (rest) {
-                            lanes[k++] = __builtin_ctz(rest);
-                            rest &= rest - 1;
+                        // Three lanes or more: each one's rank among them by
+                        // entry, farthest first (ties: the lower lane first),
+                        // from two lane compares, and each written to its
+                        // place on the stack - no branch on the entries (an
+                        // insertion sort's loops mispredicted about five times
+                        // a ray, callgrind, sportscar, random rays). The
+                        // nearest, on top, is taken.
+                        const LaneFloats entries = LaneFloats::load(reinterpret_cast<const char*>(en));
+                        const unsigned entered = unsigned(mask);
+                        for (unsigned m = entered; m; m &= m - 1) {
+                            const int l = __builtin_ctz(m);
+                            const LaneFloats mine = LaneFloats::all(en[l]);
+                            const unsigned before =
+                                (unsigned(gt_bits(entries, mine)) |
+                                 (unsigned(eq_bits(entries, mine)) & ((1u << l) - 1u))) &
+                                entered;
+                            stack[top + __builtin_popcount(before)] = {
+                                node.child[l], node.count[l], en[l], ex[l],
+                                BvhWideNode::kWidth * child + uint32_t(l)};
+                            prefetch_item(nodes, leaf_tris, node.child[l], node.count[l]);
                         }
-                        for (int i = 1; i < k; ++i)  // insertion sort by entry, farthest first
-                            for (int j = i; j > 0 && en[lanes[j - 1]] < en[lanes[j]]; --j)
-                                std::swap(lanes[j - 1], lanes[j]);
-                        for (int i = 0; i < k - 1; ++i) {
-                            const int l = lanes[i];
-                            stack[top++] = {node.child[l], node.count[l], en[l], ex[l],
-                                            BvhWideNode::kWidth * child + uint32_t(l)};
-                        }
-                        take = lanes[k - 1];
+                        top += __builtin_popcount(entered) - 1;
+                        const WideStackEntry& e = stack[top];
+                        child = e.child;
+                        count = e.count;
+                        t0 = e.tmin;
+                        t1 = e.tmax;
+                        count_.step(binary_of[e.lane], t0, t1, t_e);
+                        continue;
                     }
                 }
                 const uint32_t at = BvhWideNode::kWidth * child + uint32_t(take);
