@@ -67,7 +67,15 @@ class Method:
                 "kd_nodes": self.kd_nodes, "plus_axes": self.plus_axes,
                 "min_k": self.min_k if takes_k else None,
                 "max_k": MAX_K if takes_k else None,
-                "defaults": {**{k: BSP_OPTIONS[k] for k in self.extra}, **self.defaults}}
+                "defaults": {**{k: COMMON_OPTIONS[k] for k in _overridden_common()},
+                             **{k: BSP_OPTIONS[k] for k in self.extra}, **self.defaults}}
+
+
+def _overridden_common() -> list[str]:
+    """The common options some method gives a default of its own (the BVH's
+    intersect_cost): every method's table says its value of them, so that a
+    panel switching from that method to another loads the other's back."""
+    return sorted({k for m in _REGISTRY["methods"] for k in m["defaults"] if k in COMMON_OPTIONS})
 
 
 def _method(entry: dict) -> Method:

@@ -177,7 +177,8 @@ std::vector<OptionSpec> make_option_specs() {
         {NUMBER_FIELD(bins), .type = T::Int, .group = "bsp", .default_value = whole(kBvhBins),
          .min = whole(kBvhMinBins), .max = whole(kBvhMaxBins), .soft_max = 64, .label = "Bins",
          .short_label = "Bins",
-         .help = "Centroid bins per axis of the BVH's binned SAH"},
+         .help = "Centroid bins per axis of the BVH's binned SAH (a node of n triangles uses at "
+                 "most 4 + n / 20)"},
     };
 }
 
@@ -249,7 +250,13 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"bvh", "BVH (binned SAH)",
                  "Binary bounding-volume hierarchy over the triangles' boxes, binned SAH "
                  "(Wald 2007): the structure of production renderers, traced by this kernel.",
-                 kBvhBuilder, "axes", false, false, {"bins"}});
+                 kBvhBuilder, "axes", false, false, {"bins"},
+                 // Its own triangle-test cost: with 8-wide nodes the walk's
+                 // step is cheap beside a leaf's tests, and larger leaves
+                 // than kd's cost of 1.5 makes pay (random rays 1.50-1.58x
+                 // Embree's time with 1.5, 1.46-1.50x with 0.75, primary
+                 // rays the same or better; docs/performance.md, "The BVH").
+                 {{"intersect_cost", real(0.75)}}});
     return m;
 }
 
@@ -290,10 +297,13 @@ BuildOptions options_for(const MethodSpec& method,
     o.plus_axes = method.plus_axes;
     o.kd_nodes = method.kd_nodes;
     for (const auto& [name, value] : values) option_spec(name);  // unknown names fail here
+    // The method's own defaults where `values` has none.
+    std::map<std::string, OptionValue> with_defaults(method.defaults.begin(), method.defaults.end());
+    for (const auto& [name, value] : values) with_defaults[name] = value;
     // In the specs' order: K before rbsp_set, which depends on it.
     for (const OptionSpec& spec : option_specs()) {
-        const auto it = values.find(spec.name);
-        if (it == values.end()) continue;
+        const auto it = with_defaults.find(spec.name);
+        if (it == with_defaults.end()) continue;
         try {
             spec.apply(o, it->second);
         } catch (const std::invalid_argument& e) {

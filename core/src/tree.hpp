@@ -155,7 +155,7 @@ struct BuildOptions {
     int cluster_sample = 1024;     // BSP_cn: normals clustered per node at most
     int ize_candidates = 64;       // BSP_IZE: triangles whose planes are tried per node at most
     // The BVH (ignored by the others): centroid bins per axis of the binned SAH.
-    int bins = 16;
+    int bins = 32;  // builders/bvh_build.hpp's kBvhBins, asserted there
     // Leaf culling with the ray segment's box (seed 002): which boxes to keep.
     LeafBoxes leaf_boxes = LeafBoxes::Triangle;
 };
