@@ -204,6 +204,14 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
         count = nodes[0].leaf_count(0);
     }
     count_.step(0, t0, t1, t_e);
+    // Makes a stack entry the current item.
+    const auto enter = [&](const WideStackEntry& e) {
+        child = e.child;
+        count = e.count;
+        t0 = e.tmin;
+        t1 = e.tmax;
+        count_.step(binary_of[e.lane], t0, t1, t_e);
+    };
     for (;;) {
         if (count == BvhWideNode::kInterior) {
             const BvhWideNode& node = nodes[child];
@@ -211,6 +219,12 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
             alignas(32) float en[kWidth], ex[kWidth];
             const int mask = lanes.test(node, s_lo, std::min(s_hi, hit.reach), en, ex);
             if (mask != 0) {
+                // Lane l of this node as stack entry `slot`, its item fetched.
+                const auto push_at = [&](int slot, int l) {
+                    stack[slot] = {node.child[l], node.count[l], en[l], ex[l],
+                                   BvhWideNode::kWidth * child + uint32_t(l)};
+                    prefetch_item(nodes, leaf_tris, node.child[l], node.count[l]);
+                };
                 // The nearest entered lane is taken now; the others are
                 // pushed farthest first, so that they pop nearest first
                 // (ties: the higher lane is taken first). One and two lanes
@@ -226,9 +240,7 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                         const bool first_nearer = en[l0] < en[l1];
                         const int push = first_nearer ? l1 : l0;
                         take = first_nearer ? l0 : l1;
-                        stack[top++] = {node.child[push], node.count[push], en[push], ex[push],
-                                        BvhWideNode::kWidth * child + uint32_t(push)};
-                        prefetch_item(nodes, leaf_tris, node.child[push], node.count[push]);
+                        push_at(top++, push);
                     } else {
                         // Three lanes or more: each one's rank among them by
                         // entry, farthest first (ties: the lower lane first),
@@ -246,18 +258,10 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                                 (unsigned(gt_bits(entries, mine)) |
                                  (unsigned(eq_bits(entries, mine)) & ((1u << l) - 1u))) &
                                 entered;
-                            stack[top + __builtin_popcount(before)] = {
-                                node.child[l], node.count[l], en[l], ex[l],
-                                BvhWideNode::kWidth * child + uint32_t(l)};
-                            prefetch_item(nodes, leaf_tris, node.child[l], node.count[l]);
+                            push_at(top + __builtin_popcount(before), l);
                         }
                         top += __builtin_popcount(entered) - 1;
-                        const WideStackEntry& e = stack[top];
-                        child = e.child;
-                        count = e.count;
-                        t0 = e.tmin;
-                        t1 = e.tmax;
-                        count_.step(binary_of[e.lane], t0, t1, t_e);
+                        enter(stack[top]);
                         continue;
                     }
                 }
@@ -291,11 +295,7 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
             if (top == 0) return;
             const WideStackEntry& e = stack[--top];
             if (!(hit.reach < e.tmin)) {
-                child = e.child;
-                count = e.count;
-                t0 = e.tmin;
-                t1 = e.tmax;
-                count_.step(binary_of[e.lane], t0, t1, t_e);
+                enter(e);
                 break;
             }
         }
