@@ -64,6 +64,13 @@ void set_leaf_boxes(BuildOptions& o, const OptionValue& v) {
     else throw std::invalid_argument("must be none, triangle or clipped, got " + s);
 }
 
+void set_build_quality(BuildOptions& o, const OptionValue& v) {
+    const std::string& s = as_string(v);
+    if (s == "exact") o.build_quality = BuildQuality::Exact;
+    else if (s == "fast") o.build_quality = BuildQuality::Fast;
+    else throw std::invalid_argument("must be exact or fast, got " + s);
+}
+
 const std::vector<int> kDopSizes = {3, 7, 9, 13};
 
 // RBSP's set; "auto" takes the k-DOP set where one exists for K, else the
@@ -130,6 +137,25 @@ std::vector<OptionSpec> make_option_specs() {
                       "culls more)", {}}},
          .label = "Leaf Boxes", .short_label = "Leaf Boxes",
          .help = "Boxes kept for leaf culling with the ray segment's box"},
+        // The build quality of kd and the sweep builder (every method but the BVH).
+        {.name = "build_quality", .field = "build_quality", .apply = set_build_quality,
+         .type = T::Enum, .group = "bsp", .default_value = OptionValue("exact"),
+         .choices = {{"exact", "Exact",
+                      "Every candidate plane swept at every node: the thesis's trees", {}},
+                     {"fast", "Fast",
+                      "Big nodes choose among binned planes, small ones sweep exactly: a quicker "
+                      "build of a slightly costlier tree, for previews", {}}},
+         .label = "Build Quality", .short_label = "Quality",
+         .help = "How thoroughly each node looks for its plane (fast: binned SAH near the root)"},
+        {NUMBER_FIELD(fast_bins), .type = T::Int, .group = "bsp", .default_value = whole(kFastBins),
+         .min = whole(2), .max = whole(4096), .soft_max = 256, .label = "Fast Bins",
+         .short_label = "Bins",
+         .help = "Fast builds: candidate planes per direction at a binned node"},
+        {NUMBER_FIELD(fast_min_refs), .type = T::Int, .group = "bsp",
+         .default_value = whole(kFastMinRefs), .min = whole(2), .max = whole(INT32_MAX),
+         .soft_max = 1 << 20, .label = "Fast Binned Size", .short_label = "Binned From",
+         .help = "Fast builds: nodes with at least this many references are binned, smaller "
+                 "ones swept exactly"},
         // The BSP family. K's limits here are the widest; a method narrows
         // them (MethodSpec::min_k, max_k).
         {NUMBER_FIELD(k), .type = T::Int, .group = "bsp", .default_value = whole(6),
@@ -193,13 +219,17 @@ const Builder kBvhBuilder{"bvh", build_bvh_tree, false, Structure::Bvh};
 // ---- The methods -------------------------------------------------------------
 
 using Options = std::vector<std::string>;
-const Options kSweepOptions = {"k", "seed"};
-const Options kKdCosts = {"alpha", "general_cost"};
 
 Options operator+(Options a, const Options& b) {
     a.insert(a.end(), b.begin(), b.end());
     return a;
 }
+
+// The build quality's options: kd's and the sweep builder's, not the BVH's.
+const Options kQuality = {"build_quality", "fast_bins", "fast_min_refs"};
+const Options kSweepOptions = Options{"k", "seed"} + kQuality;
+const Options kKdCosts = {"alpha", "general_cost"};
+
 
 std::string lower(std::string s) {
     for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
@@ -225,7 +255,7 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"kd", "kd (SAH)",
                  "Axis-aligned kd-tree, SAH with perfect splits, O(N log N) build "
                  "(Wald & Havran 2006).",
-                 kKdBuilder});
+                 kKdBuilder, "axes", false, false, kQuality});
     m.push_back({"rbsp", "RBSP",
                  "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
                  "else the three axes plus K - 3 golden-spiral points) at every node.",
@@ -244,9 +274,10 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"bsp_ize", "BSP IZE",
                  "kd planes plus every triangle's own plane and its three edge planes "
                  "(Ize, Wald & Parker 2008).",
-                 kSweepBuilder, "ize", true, false, {"seed", "ize_candidates"}});
+                 kSweepBuilder, "ize", true, false, Options{"seed", "ize_candidates"} + kQuality});
     m.push_back({"bsp_ize+kd", "BSP IZE ^Kd", "BSP_IZE whose axis splits are fast kd nodes.",
-                 kSweepBuilder, "ize", true, true, Options{"seed", "ize_candidates"} + kKdCosts});
+                 kSweepBuilder, "ize", true, true,
+                 Options{"seed", "ize_candidates"} + kQuality + kKdCosts});
     m.push_back({"bvh", "BVH (binned SAH)",
                  "Binary bounding-volume hierarchy over the triangles' boxes, binned SAH "
                  "(Wald 2007): the structure of production renderers, traced by this kernel.",

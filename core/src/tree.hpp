@@ -124,6 +124,16 @@ struct Plane {
 constexpr uint32_t kMaxNodes = Node::kMaxPayload;
 constexpr uint32_t kMaxLeafCount = Node::kMaxPayload;
 
+// How much work a kd or sweep build spends looking for each plane
+// (registry option build_quality). Exact sweeps every candidate position at
+// every node (the trees of the theses). Fast bins the candidates of the big
+// nodes near the root - kFastBins positions per direction, at nodes of at
+// least kFastMinRefs references - and sweeps exactly below: a quicker build
+// of a slightly worse tree, for previews. The BVH is binned either way.
+enum class BuildQuality : int { Exact = 0, Fast = 1 };
+constexpr int kFastBins = 32;
+constexpr int kFastMinRefs = 4096;
+
 enum class LeafBoxes : int {
     None = 0,      // no culling possible
     Triangle = 1,  // each triangle's own box: 24 bytes per triangle
@@ -158,6 +168,10 @@ struct BuildOptions {
     int bins = 32;  // builders/bvh_build.hpp's kBvhBins, asserted there
     // Leaf culling with the ray segment's box (seed 002): which boxes to keep.
     LeafBoxes leaf_boxes = LeafBoxes::Triangle;
+    // kd and the sweep builder (the BVH ignores them): see BuildQuality.
+    BuildQuality build_quality = BuildQuality::Exact;
+    int fast_bins = kFastBins;          // bins per direction of a binned node
+    int fast_min_refs = kFastMinRefs;   // nodes with at least this many references are binned
 };
 
 struct LevelStats {

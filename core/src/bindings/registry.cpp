@@ -95,6 +95,10 @@ void bind_registry(nb::module_& m) {
         .value("triangle", LeafBoxes::Triangle)
         .value("clipped", LeafBoxes::Clipped);
 
+    nb::enum_<BuildQuality>(m, "BuildQuality")
+        .value("exact", BuildQuality::Exact)
+        .value("fast", BuildQuality::Fast);
+
     nb::class_<BuildOptions>(m, "BuildOptions")
         .def(nb::init<>())
         .def_rw("traversal_cost", &BuildOptions::traversal_cost)
@@ -117,7 +121,10 @@ void bind_registry(nb::module_& m) {
         .def_rw("cluster_iterations", &BuildOptions::cluster_iterations)
         .def_rw("cluster_sample", &BuildOptions::cluster_sample)
         .def_rw("ize_candidates", &BuildOptions::ize_candidates)
-        .def_rw("leaf_boxes", &BuildOptions::leaf_boxes);
+        .def_rw("leaf_boxes", &BuildOptions::leaf_boxes)
+        .def_rw("build_quality", &BuildOptions::build_quality)
+        .def_rw("fast_bins", &BuildOptions::fast_bins)
+        .def_rw("fast_min_refs", &BuildOptions::fast_min_refs);
 
     m.def("registry", &registry, "The methods, options and strategies of registry.hpp.");
     m.def(

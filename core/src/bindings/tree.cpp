@@ -66,6 +66,10 @@ nb::dict stats(const Tree& tree) {
     d["plane_bytes"] = uint64_t(tree.planes.size() * sizeof(Plane));
     static const char* kinds[] = {"none", "triangle", "clipped"};
     d["leaf_boxes"] = kinds[int(tree.options.leaf_boxes)];
+    // The quality the tree was built at: the BVH is binned whatever it was asked.
+    d["build_quality"] = tree.structure == Structure::Bvh ? "binned"
+                         : tree.options.build_quality == BuildQuality::Fast ? "fast"
+                                                                            : "exact";
     nb::list warnings;
     for (const std::string& w : s.warnings) warnings.append(w);
     d["warnings"] = warnings;
