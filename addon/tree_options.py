@@ -15,6 +15,12 @@ from .state import STATE
 # more than the default memory limit is no preview.
 HIDDEN_OPTIONS = ("memory_limit_mb",)
 
+# Where the panel's default differs from the registry's, and why: the first
+# press of Build & Render should give a preview quickly, and the fast build
+# (binned planes near the root) builds several times quicker for a tree a few
+# percent costlier (docs/build_quality.md); exact is one click away.
+PANEL_DEFAULTS = {"build_quality": "fast"}
+
 # A Blender property's limit for an open lower limit (a cost "> 0"): the
 # smallest step the panel's fields show.
 OPEN_MIN_STEP = 0.001
@@ -47,14 +53,16 @@ def _limits(spec):
 
 def option_property(spec):
     """The bpy property of one build option: its name, help text, default
-    and limits all from the registry (`bsplab.method_table.OPTIONS`)."""
+    and limits all from the registry (`bsplab.method_table.OPTIONS`), but
+    the defaults of PANEL_DEFAULTS."""
     common = {"name": spec["label"], "description": spec["help"]}
+    default = PANEL_DEFAULTS.get(spec["name"], spec["default"])
     if spec["type"] == "enum":
         items = tuple((c["name"], c["label"], c["help"]) for c in spec["choices"])
-        return EnumProperty(items=items, default=spec["default"], **common)
+        return EnumProperty(items=items, default=default, **common)
     if spec["type"] == "int":
-        return IntProperty(default=spec["default"], **common, **_limits(spec))
-    return FloatProperty(default=spec["default"], **common, **_limits(spec))
+        return IntProperty(default=default, **common, **_limits(spec))
+    return FloatProperty(default=default, **common, **_limits(spec))
 
 
 # The build options the panel can edit, in the panel's order; empty when

@@ -161,6 +161,7 @@ def two_level_rows(build):
     return [
         ("Built As", "two-level"),
         ("Method", str(build.get("method", "-"))),
+        ("Build Quality", str(build.get("build_quality", "-"))),
         ("Structure", "BVH over {}".format(structure) if structure != "-" else "-"),
         ("Tree", _two_level_tree(build)),
         ("Mesh Trees", _mesh_trees(build)),
@@ -191,6 +192,7 @@ def build_rows(build):
     rows = [("Built As", "flatten")] if build.get("instances_mode") == "flatten" else []
     rows += [
         ("Method", str(build.get("method", "-"))),
+        ("Build Quality", str(build.get("build_quality", "-"))),
         ("Structure", STRUCTURE_NAMES.get(build.get("structure"), "-")),
         ("Tree", _tree_origin(build)),
         ("Build Time", _seconds(build.get("build_seconds"))),

@@ -106,7 +106,8 @@ def test_reload_scripts(addon):
 
 def test_option_properties_follow_the_registry(addon, core):
     """Every build option's property: name, help, default and limits from the
-    core's registry, not retyped in the add-on."""
+    core's registry, not retyped in the add-on; the panel's own defaults
+    (PANEL_DEFAULTS: the fast build for a quick first preview) excepted."""
     schema = core.option_schema()
     shown = [name for name in schema if name not in addon.tree_options.HIDDEN_OPTIONS]
     assert sorted(addon.tree_options.BUILD_OPTIONS) == sorted(shown)
@@ -115,12 +116,13 @@ def test_option_properties_follow_the_registry(addon, core):
         spec, prop = schema[name], rna[name]
         assert (prop.name, prop.description) == (spec["label"], spec["help"]), name
         assert addon.tree_options.SHORT_LABELS[name] == spec["short_label"]
+        default = addon.tree_options.PANEL_DEFAULTS.get(name, spec["default"])
         if spec["type"] == "enum":
-            assert prop.default == spec["default"]
+            assert prop.default == default, name
             assert [(i.identifier, i.name, i.description) for i in prop.enum_items] == \
                 [(c["name"], c["label"], c["help"]) for c in spec["choices"]]
             continue
-        assert prop.default == pytest.approx(spec["default"]), name
+        assert prop.default == pytest.approx(default), name
         if spec["min"] is not None:
             step = addon.tree_options.OPEN_MIN_STEP if spec["min_open"] else 0
             assert prop.hard_min == pytest.approx(spec["min"] + step), name
@@ -128,6 +130,15 @@ def test_option_properties_follow_the_registry(addon, core):
             assert prop.hard_max == pytest.approx(min(spec["max"], 2**31 - 1)), name
         if spec["soft_max"] is not None:
             assert prop.soft_max == pytest.approx(spec["soft_max"]), name
+
+
+def test_the_button_builds_fast_by_default(addon, core):
+    """The first preview is quick: the panel's build quality starts at fast,
+    though the registry's (scripts', the lab's) default stays exact."""
+    assert core.option_schema()["build_quality"]["default"] == "exact"
+    rna = addon.build_render.properties.BSPLabSettings.bl_rna.properties
+    assert rna["build_quality"].default == "fast"
+    assert bpy.context.scene.bsplab.build_quality == "fast"
 
 
 def test_method_defaults_fit_the_properties(addon, core):

@@ -154,6 +154,24 @@ def test_build_of_a_degenerate_tree_shows_the_warning(addon, core, test_scene):
     assert not any(icon == 'ERROR' for icon, _, _ in draw_icons(addon.build_render.panel.BSPLAB_PT_stats))
 
 
+def test_build_says_its_quality(addon, core, test_scene):
+    """The panel's default press builds fast (a quick first preview) and says
+    so; exact builds the registry's exact tree and says that."""
+    scene = test_scene["scene"]
+    assert scene.bsplab.build_quality == "fast"
+    assert bpy.ops.bsplab.build_render() == {'FINISHED'}
+    assert scene.bsplab.stats["build"]["build_quality"] == "fast"
+    texts = [text for kind, text in draw(addon.build_render.panel.BSPLAB_PT_stats) if kind == "label"]
+    assert texts[texts.index("Build Quality") + 1] == "fast"
+    scene.bsplab.build_quality = "exact"
+    try:
+        assert bpy.ops.bsplab.build_render() == {'FINISHED'}
+        assert scene.bsplab.stats["build"]["build_quality"] == "exact"
+        assert scene.bsplab.stats["build"]["reused"] is False  # another tree: built anew
+    finally:
+        scene.bsplab.build_quality = "fast"
+
+
 @pytest.mark.parametrize("agreement", [1.0, 0.99])
 def test_stats_embree_rows(addon, agreement):
     rows = dict(addon.build_render.statistics.embree_rows({

@@ -128,6 +128,7 @@ def test_statistics_of_a_bvh_leave_out_the_rows_of_split_planes():
     assert {"Structure", "SAH Cost", "Node Bytes"} <= set(build)
     rows = dict(r for t, rs in statistics.sections(stats) for r in rs)
     assert rows["Structure"] == "BVH (boxes)"
+    assert rows["Build Quality"] == "binned"  # whatever it was asked
     assert rows["Box Tests / Ray"] == "{:.2f}".format(render["mean_box_tests"])
     assert render["mean_box_tests"] > 0
 
@@ -137,6 +138,8 @@ def test_statistics_of_a_kd_tree_keep_theirs_and_show_no_box_tests():
     _, render = bsplab.render(tree, scenes.default_camera("room"), 24, 16, counters=True)
     stats = _stats(tree, render)
     assert {"Kd / General", "Duplication", "Leaf Boxes"} <= set(_labels(stats, "Build"))
+    rows = dict(r for _, rs in statistics.sections(stats) for r in rs)
+    assert rows["Build Quality"] == "exact"  # the registry's default, which tree_of builds
     assert "Box Tests / Ray" not in _labels(stats, "Render")
     assert dict(r for _, rs in statistics.sections(stats) for r in rs)["Structure"] == \
         "split planes"

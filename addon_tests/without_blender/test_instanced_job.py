@@ -89,6 +89,9 @@ def test_two_level_job_renders_as_the_flattened_scene_and_agrees_with_embree(tra
     assert build["top_nodes"] > 0 and build["top_bytes"] > 0
     assert build["bottom_bytes"] + build["top_bytes"] == build["bytes"]
     assert (build["mesh_trees_built"], build["mesh_trees_reused"]) == (2, 0)
+    # The mesh trees' quality, as the panel's Build rows say it.
+    assert build["build_quality"] == KD_OPTIONS.get("build_quality", "exact")
+    assert dict(statistics.build_rows(build))["Build Quality"] == build["build_quality"]
     assert flat.result["stats"]["build"]["instances_mode"] == "flatten"
     # The same hits as one tree over the flattened triangles: the depth
     # images differ at most in a few pixels (edges, the transform's rounding).

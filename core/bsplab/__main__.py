@@ -142,7 +142,8 @@ def cmd_build_bench(args) -> int:
     from bsplab.lab import build_bench
     out = output_file(args.out, "--out", "build_benchmark.md") if args.out else None
     rows = build_bench.bench_build(args.scenes, rounds=args.repeats, threads=args.threads,
-                                   sweeps=args.sweeps)
+                                   sweeps=args.sweeps,
+                                   side=build_bench.DEFAULT_SIDE if args.side is None else args.side)
     if not rows:
         raise ValueError(f"none of the scenes ({', '.join(args.scenes or build_bench.DEFAULT_SCENES)}) "
                          f"is here (the shared scenes folder: {build_bench.shared_folder()}); "
@@ -351,13 +352,17 @@ def main(argv=None) -> int:
     bf.add_argument("--repeats", type=whole(1), default=3, help="paired rounds (default 3)")
     bf.set_defaults(func=cmd_bench_families)
 
-    bb = sub.add_parser("bench-build", help="kd build time against Embree's BVH build")
+    bb = sub.add_parser("bench-build", help="kd build time, exact and fast, against Embree's "
+                                            "BVH build; what the fast build costs in the tree")
     bb.add_argument("--scenes", nargs="+", help="default: the seven shared meshes")
     bb.add_argument("--repeats", type=whole(1), default=3, help="paired rounds (default 3)")
     bb.add_argument("--threads", type=whole(0), default=0,
                     help="the second kd column's threads (default 0: all cores)")
     bb.add_argument("--sweeps", action="store_true",
                     help="also time bsp_wn+kd (K = 8) and bsp_ize+kd, as multiples of kd")
+    bb.add_argument("--side", type=whole(0),
+                    help="the quality table's primary rays: a side x side image, and one AO ray "
+                         "from each hit (default 256; 0: no quality table)")
     bb.add_argument("--out", help="also write the Markdown table here")
     bb.set_defaults(func=cmd_build_bench)
 

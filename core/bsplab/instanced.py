@@ -79,6 +79,8 @@ class InstancedTree:
             self._bottom_stats = [t.stats for t in self.meshes]
         bottom = self._bottom_stats
         s["method"] = self.method
+        # The mesh trees share their options: the quality that built them.
+        s["build_quality"] = bottom[0]["build_quality"] if bottom else None
         s["bottom_bytes"] = int(sum(b["bytes"] for b in bottom))
         s["bottom_nodes"] = int(sum(b["nodes"] for b in bottom))
         s["bottom_build_seconds"] = float(sum(b["build_seconds"] for b in bottom))

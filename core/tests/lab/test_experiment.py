@@ -316,3 +316,27 @@ def test_thesis_comparison_lines_up_methods_and_scenes():
     row = next(line for line in lines if line.startswith("| bsp_wn+kd | 6 |"))
     # thesis Sponza K=6: 80.364; ours 1.5 / 2 = 75 %.
     assert row == "| bsp_wn+kd | 6 | 80 | 75 | 75 |"
+
+
+def test_a_spec_sweeps_the_build_quality(tmp_path):
+    # build_quality is a build option like any: variants make a trial of each,
+    # and each trial's tree is the one bsplab.build makes with that option
+    # (fast_min_refs low, so that the room's top nodes are binned).
+    import bsplab
+    from bsplab import scenes
+    qualities = [{"build_quality": "exact"}, {"build_quality": "fast"}]
+    rows = lab.run(spec(methods=["kd", "bsp_wn+kd"], ks=[4], seeds=[1], workloads=["primary"],
+                        options={"fast_min_refs": 64},
+                        method_variants={"kd": qualities, "bsp_wn+kd": qualities}),
+                   tmp_path / "q", quiet=True)
+    got = {(r["method"], r["variant"]): r for r in rows}
+    assert len(got) == 4
+    room = scenes.generate("room")
+    for (method, variant), r in got.items():
+        quality = json.loads(variant)["build_quality"]
+        options = {"k": 4} if method != "kd" else {}
+        tree = bsplab.build(room, method, fast_min_refs=64, build_quality=quality, **options)
+        # The rows as the results file keeps them: text.
+        assert float(r["sah"]) == tree.stats["sah_cost"], (method, quality)
+        assert int(r["nodes"]) == tree.stats["nodes"]
+        assert str(r["unexplained"]) == "0"  # fast trees agree with Embree too

@@ -143,10 +143,26 @@ def test_options_for_sets_fields_by_name():
     ({"k": 6.5}, "option k takes a whole number"),
     ({"leaf_boxes": 1}, "option leaf_boxes takes a string"),
     ({"leaf_boxes": "all"}, "option leaf_boxes must be none, triangle or clipped"),
+    ({"build_quality": 1}, "option build_quality takes a string"),
+    ({"build_quality": "turbo"}, "option build_quality must be exact or fast, got turbo"),
+    ({"fast_bins": 8.5}, "option fast_bins takes a whole number"),
 ])
 def test_options_for_refuses_bad_names_and_types(values, words):
     with pytest.raises(ValueError, match=words):
         _core.options_for("bsp_wn", values)
+
+
+def test_build_quality_is_kds_and_the_sweeps_not_the_bvhs():
+    # The BVH is binned whatever it is asked; every other method takes the option.
+    assert "build_quality" not in METHODS["bvh"].params
+    for name, m in METHODS.items():
+        if name != "bvh":
+            assert {"build_quality", "fast_bins", "fast_min_refs"} <= set(m.params), name
+    o = _core.options_for("kd", {"build_quality": "fast", "fast_bins": 16, "fast_min_refs": 100})
+    assert (o.build_quality, o.fast_bins, o.fast_min_refs) == (_core.BuildQuality.fast, 16, 100)
+    assert _core.options_for("kd", {}).build_quality == _core.BuildQuality.exact
+    with pytest.raises(TypeError, match="unknown build option.s. build_quality for method 'bvh'"):
+        bsplab.build(scenes.generate("cube"), "bvh", build_quality="fast")
 
 
 def test_unknown_method_is_named():
