@@ -46,17 +46,22 @@ def add_core_paths():
             sys.path.insert(0, entry)
 
 
-def ready_addon(scene, method, preview):
+def ready_addon(scene, method, preview, k=None, quality=None):
     """The add-on loaded and registered once, and the scene's Build & Render
-    set as every timing script presses it: `method`, shaded, `preview`
-    percent of the render size, no Embree comparison. Returns (add-on
-    module, the scene's settings)."""
+    set as every timing script presses it: `method` (with K `k` when given,
+    else the method's own), shaded, `preview` percent of the render size, no
+    Embree comparison, the build quality `quality` when given (else the
+    panel's default). Returns (add-on module, the scene's settings)."""
     addon = demo_headless.load_addon()
     if not hasattr(bpy.types.Scene, "bsplab"):
         addon.register()
     settings = scene.bsplab
     settings.method, settings.render_mode = method, "shaded"
     settings.preview_percentage, settings.compare_with_embree = preview, False
+    if k is not None:
+        settings.k = k
+    if quality is not None:
+        settings.build_quality = quality
     return addon, settings
 
 
@@ -77,6 +82,9 @@ def scene_arguments(prog):
     p.add_argument("--scene", default="conference")
     p.add_argument("--preview", type=int, default=50)
     p.add_argument("--method", default="kd")
+    p.add_argument("--k", type=int, help="K of the methods that take one (default: the method's)")
+    p.add_argument("--quality", choices=("exact", "fast"),
+                   help="the build quality (default: the panel's, fast)")
     return p
 
 
@@ -127,10 +135,12 @@ def main():
     path = shared / f"{args.scene}.ply"
     scene = import_scene(path)
     add_camera(scene, io.load_mesh(path))
-    addon, settings = ready_addon(scene, args.method, args.preview)
+    addon, settings = ready_addon(scene, args.method, args.preview, args.k, args.quality)
     if hasattr(settings, "count_steps"):
         settings.count_steps = not args.no_counts
-    print(f"time_button: Blender {bpy.app.version_string}, {args.scene}, {args.method}, "
+    print(f"time_button: Blender {bpy.app.version_string}, {args.scene}, {args.method}"
+          f"{f' K={settings.k}' if hasattr(settings, 'k') and args.k else ''}, "
+          f"{getattr(settings, 'build_quality', 'exact')}, "
           f"{args.preview}% of 1920x1080, kernels {bsplab.cpu_features()['selected']}, "
           f"counts {'off' if args.no_counts else 'on'}")
     walls = [press_button(addon, settings, press, args.cold) for press in range(args.presses)]

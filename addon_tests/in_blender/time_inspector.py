@@ -58,7 +58,8 @@ def main():
         return 0
     scene = time_button.import_scene(path)
     time_button.add_camera(scene, io.load_mesh(path))
-    addon, settings = time_button.ready_addon(scene, args.method, args.preview)
+    addon, settings = time_button.ready_addon(scene, args.method, args.preview, args.k,
+                                              args.quality)
     settings.instances = "flatten"  # a shared mesh is one object: nothing to instance
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
     build = addon.state.STATE.shown_build

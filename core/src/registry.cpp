@@ -149,7 +149,7 @@ std::vector<OptionSpec> make_option_specs() {
          .help = "How thoroughly each node looks for its plane (fast: binned SAH near the root)"},
         {NUMBER_FIELD(fast_bins), .type = T::Int, .group = "bsp", .default_value = whole(kFastBins),
          .min = whole(2), .max = whole(4096), .soft_max = 256, .label = "Fast Bins",
-         .short_label = "Bins",
+         .short_label = "Fast Bins",
          .help = "Fast builds: candidate planes per direction at a binned node"},
         {NUMBER_FIELD(fast_min_refs), .type = T::Int, .group = "bsp",
          .default_value = whole(kFastMinRefs), .min = whole(2), .max = whole(INT32_MAX),
