@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
+#include <algorithm>
 #include <utility>
 
 namespace bsp {
@@ -110,11 +112,22 @@ float round_up(double x) {
     return double(f) < x ? step_float(f, true) : f;
 }
 
+// The polygon's bounds in double, rounded outwards once per face: rounding
+// is monotone, so this is the box of the vertices rounded one by one (which
+// took six roundings a vertex, 6 % of a kd build's instructions).
 Box outward_bounds(const Point* v, int n, const Box& box) {
-    Box b;
+    constexpr double kHuge = std::numeric_limits<double>::infinity();
+    double lo[3] = {kHuge, kHuge, kHuge}, hi[3] = {-kHuge, -kHuge, -kHuge};
     for (int i = 0; i < n; ++i) {
-        b.extend(Vec3(round_down(v[i][0]), round_down(v[i][1]), round_down(v[i][2])));
-        b.extend(Vec3(round_up(v[i][0]), round_up(v[i][1]), round_up(v[i][2])));
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], v[i][k]);
+            hi[k] = std::max(hi[k], v[i][k]);
+        }
+    }
+    Box b;
+    if (n > 0) {
+        b.lo = Vec3(round_down(lo[0]), round_down(lo[1]), round_down(lo[2]));
+        b.hi = Vec3(round_up(hi[0]), round_up(hi[1]), round_up(hi[2]));
     }
     return b.intersect(box);
 }
