@@ -4,6 +4,12 @@
 // children's lists without re-sorting. Only triangles that straddle the plane
 // get new events: they are clipped to each child box ("perfect splits"), and
 // those few new events are sorted and merged in.
+//
+// build_quality = "fast" (kd_bins.hpp): the nodes of at least fast_min_refs
+// references are split at binned planes and hold their references as an
+// array of clipped boxes, partitioned from node to node; the root's sorted
+// lists are never made. A node below that size sorts its own references'
+// events and continues with the exact sweep.
 #include "builders/kd_build.hpp"
 
 #include <algorithm>
@@ -15,6 +21,7 @@
 #include "builders/build_tree.hpp"
 #include "builders/clip.hpp"
 #include "builders/cost_model.hpp"
+#include "builders/kd_bins.hpp"
 #include "builders/kd_events.hpp"
 #include "parallel.hpp"
 
@@ -37,6 +44,18 @@ constexpr uint64_t kStraddleBytes = sizeof(uint32_t) + 2 * kEventBytesPerRef;
 // many times the events of the task's root: a depth-first build needs
 // about twice its root's lists (the right children waiting along the path).
 constexpr double kStackBlockShare = 0.5;
+// Events of a reference on all three axes, at most.
+constexpr size_t kEventsPerRef = 6;
+// Fast builds: a binned node's event lists shorter than this are sorted by
+// std::sort, longer ones by the radix sort (whose 2048 counters would cost
+// more than the events themselves in a small list).
+constexpr size_t kRadixMinEvents = 1024;
+
+// A binned node's references and their charge to the memory budget.
+struct RefArray {
+    std::vector<KdRef> refs;
+    Charge charge;
+};
 
 // A triangle's events along axis k: one planar event, or a start and an end.
 void add_axis_events(const Box& b, uint32_t tri, int k, EventList& out) {
@@ -75,6 +94,7 @@ struct TaskScratch {
     std::vector<uint32_t> straddling;     // the triangles the current plane cuts
     EventList new_left[3], new_right[3];  // their clipped events, per axis
     EventStack stack;                     // the nodes' event lists
+    EventList sort_in, sort_tmp;          // fast builds: a binned node's events being sorted
 
     explicit TaskScratch(size_t block_events) : stack(block_events) {}
 
@@ -118,7 +138,186 @@ public:
         return build_node(ev, box, depth, budget, scratch, credit);
     }
 
+    // A fast build's task (the root, or a binned subtree on a thread of its
+    // own): its references' charge moves to the task's credit first.
+    std::unique_ptr<BuildNode> build_binned(RefArray refs, const Box& box, int depth,
+                                            double budget) {
+        TaskCredit credit(memory_);
+        refs.charge.move_to(credit);
+        BinnedTask task{credit, nullptr, Charge(), KdBins()};
+        return build_binned_node(std::move(refs), box, depth, budget, task);
+    }
+
 private:
+    // A binned task's exact part: its scratch (the triangle marks, the event
+    // stack) made when the first of its nodes falls below fast_min_refs.
+    struct BinnedTask {
+        TaskCredit& credit;
+        std::unique_ptr<TaskScratch> scratch;
+        Charge marks;
+        KdBins bins;  // the binned nodes', reset from node to node
+    };
+
+    // Binned nodes of more references than this bin and partition them in
+    // chunks of this many on several threads (near the root, while the
+    // subtrees do not yet keep every thread busy). The chunks do not depend
+    // on the thread count, nor does the order of the references they give.
+    static constexpr size_t kRefChunk = 1u << 15;
+
+    bool parallel_node(int depth, size_t refs) const {
+        return threads_ > 1 && refs > 2 * kRefChunk && (1 << depth) < threads_;
+    }
+
+    // The cheapest binned plane of a node, or none (axis -1).
+    BinnedSplit find_binned_split(const std::vector<KdRef>& refs, const Box& box, int depth,
+                                  KdBins& total) const {
+        const int bins = opt_.fast_bins;
+        total.reset(box, bins);
+        if (parallel_node(depth, refs.size())) {
+            const size_t chunks = (refs.size() + kRefChunk - 1) / kRefChunk;
+            std::vector<KdBins> part(chunks, KdBins(box, bins));
+            parallel_for(refs.size(), kRefChunk, threads_, [&](size_t b, size_t e) {
+                KdBins& bins_of = part[b / kRefChunk];
+                for (size_t i = b; i < e; ++i) bins_of.add(refs[i].box);
+            });
+            for (const KdBins& p : part) total.merge(p);
+        } else {
+            for (const KdRef& r : refs) total.add(r.box);
+        }
+        return total.best(cost_, uint32_t(refs.size()));
+    }
+
+    // Sorts one chunk of a binned node's references to the sides of the
+    // split, in order; a reference the plane cuts is clipped into both
+    // ("perfect splits", as clip_straddling does for the exact build).
+    void partition_chunk(const KdRef* begin, const KdRef* end, const Box& box, int axis, float pos,
+                         const Box& lbox, const Box& rbox, std::vector<KdRef>& left,
+                         std::vector<KdRef>& right) const {
+        for (const KdRef* r = begin; r != end; ++r) {
+            switch (ref_side(r->box, axis, pos)) {
+            case RefSide::Left: left.push_back(*r); break;
+            case RefSide::Right: right.push_back(*r); break;
+            case RefSide::Both: {
+                Box lb, rb;
+                split_clipped_bounds(tris_[r->tri], box, axis, pos, lb, rb);
+                if (lb.empty()) lb = tris_[r->tri].bounds().intersect(lbox);
+                if (rb.empty()) rb = tris_[r->tri].bounds().intersect(rbox);
+                left.push_back({lb, r->tri});
+                right.push_back({rb, r->tri});
+            }
+            }
+        }
+    }
+
+    void partition(const std::vector<KdRef>& refs, const Box& box, const BinnedSplit& s,
+                   const Box& lbox, const Box& rbox, int depth, std::vector<KdRef>& left,
+                   std::vector<KdRef>& right) const {
+        left.reserve(s.n_left);
+        right.reserve(s.n_right);
+        if (!parallel_node(depth, refs.size())) {
+            partition_chunk(refs.data(), refs.data() + refs.size(), box, s.axis, s.pos, lbox,
+                            rbox, left, right);
+            return;
+        }
+        const size_t chunks = (refs.size() + kRefChunk - 1) / kRefChunk;
+        std::vector<std::vector<KdRef>> l(chunks), r(chunks);
+        parallel_for(refs.size(), kRefChunk, threads_, [&](size_t b, size_t e) {
+            const size_t c = b / kRefChunk;
+            partition_chunk(refs.data() + b, refs.data() + e, box, s.axis, s.pos, lbox, rbox,
+                            l[c], r[c]);
+        });
+        for (size_t c = 0; c < chunks; ++c) {
+            left.insert(left.end(), l[c].begin(), l[c].end());
+            right.insert(right.end(), r[c].begin(), r[c].end());
+        }
+    }
+
+    // Charges what a partitioned array holds beyond what was charged for it.
+    static void top_up(RefArray& a, int depth, TaskCredit& credit) {
+        const uint64_t held = sizeof(KdRef) * a.refs.capacity();
+        if (held > a.charge.bytes())
+            a.charge.absorb(Charge(credit, held - a.charge.bytes(), depth,
+                                   "the children's references"));
+    }
+
+    std::unique_ptr<BuildNode> build_binned_node(RefArray refs, const Box& box, int depth,
+                                                 double budget, BinnedTask& task) {
+        check_stop();
+        const size_t n = refs.refs.size();
+        if (n < size_t(opt_.fast_min_refs) || int(n) <= opt_.leaf_size || depth >= opt_.max_depth)
+            return build_exact_below(std::move(refs), box, depth, budget, task);
+        const BinnedSplit s = find_binned_split(refs.refs, box, depth, task.bins);
+        // No binned plane pays, or the budget is spent: the exact sweep
+        // decides (a leaf, most likely), as it would have.
+        if (s.axis < 0 || !(s.cost < cost_.leaf(n)) ||
+            double(s.n_left) + double(s.n_right) > budget)
+            return build_exact_below(std::move(refs), box, depth, budget, task);
+
+        Charge(task.credit, kBuildNodeBytes, depth, "a build node").keep();
+        Box lbox = box, rbox = box;
+        lbox.hi[s.axis] = s.pos;
+        rbox.lo[s.axis] = s.pos;
+        RefArray left, right;
+        left.charge = Charge(task.credit, sizeof(KdRef) * s.n_left, depth, "the children's references");
+        right.charge = Charge(task.credit, sizeof(KdRef) * s.n_right, depth, "the children's references");
+        partition(refs.refs, box, s, lbox, rbox, depth, left.refs, right.refs);
+        refs = RefArray();  // the node's own array is not needed any more
+        // The bins' counts round the boxes to the bins: the true sides can
+        // hold a few more.
+        top_up(left, depth, task.credit);
+        top_up(right, depth, task.credit);
+
+        double lbudget, rbudget;
+        split_budget(budget, double(left.refs.size()), double(right.refs.size()), lbudget, rbudget);
+        auto node = std::make_unique<BuildNode>();
+        node->kind = kd_kind(s.axis);
+        node->split = s.pos == 0.0f ? 0.0f : s.pos;
+        node->area = box.area();
+        if (spawns(depth, n)) {
+            auto right_task = std::async(std::launch::async, [&] {
+                return build_binned(std::move(right), rbox, depth + 1, rbudget);
+            });
+            node->child[0] = build_binned_node(std::move(left), lbox, depth + 1, lbudget, task);
+            node->child[1] = right_task.get();
+        } else {
+            node->child[0] = build_binned_node(std::move(left), lbox, depth + 1, lbudget, task);
+            node->child[1] = build_binned_node(std::move(right), rbox, depth + 1, rbudget, task);
+        }
+        return node;
+    }
+
+    // A node below the binned size: its references' clipped boxes become
+    // sorted event lists on the task's stack, and the exact sweep builds
+    // the subtree from there.
+    std::unique_ptr<BuildNode> build_exact_below(RefArray refs, const Box& box, int depth,
+                                                 double budget, BinnedTask& task) {
+        if (!task.scratch) {
+            task.marks = Charge(task.credit, tris_.size() * sizeof(uint16_t), depth,
+                                "a build task's triangle marks");
+            const size_t block = size_t(double(kEventsPerRef * opt_.fast_min_refs) * 2 * kStackBlockShare);
+            task.scratch = std::make_unique<TaskScratch>(block);
+            task.scratch->marks.resize(tris_.size());
+        }
+        TaskScratch& scratch = *task.scratch;
+        const EventStack::Mark mark = scratch.stack.mark();
+        NodeEvents ev;
+        ev.count = uint32_t(refs.refs.size());
+        for (int k = 0; k < 3; ++k) {
+            EventList& e = scratch.sort_in;
+            e.clear();
+            for (const KdRef& r : refs.refs) add_axis_events(r.box, r.tri, k, e);
+            if (e.size() < kRadixMinEvents) std::sort(e.begin(), e.end());
+            else radix_sort_events(e, scratch.sort_tmp);
+            Event* room = scratch.stack.push(e.size(), task.credit, depth);
+            std::copy(e.begin(), e.end(), room);
+            ev.axis[k] = {room, e.size()};
+        }
+        refs = RefArray();
+        auto node = build_node(ev, box, depth, budget, scratch, task.credit);
+        scratch.stack.release(mark);
+        return node;
+    }
+
     // The cheapest SAH split along axis k, sweeping its sorted events once.
     Split find_split_axis(const NodeEvents& ev, const Box& box, int k) const {
         Split best;
@@ -414,6 +613,24 @@ private:
     }
 };
 
+// A fast build's root: every live triangle's bounds as a reference.
+std::unique_ptr<BuildNode> build_binned_root(Tree& tree, const Prepared& prep,
+                                             MemoryBudget& memory, TaskCredit& credit,
+                                             int threads, Progress* progress) {
+    const size_t n = prep.live.size();
+    RefArray root;
+    root.charge = Charge(credit, sizeof(KdRef) * n, 0, "the root's references");
+    root.refs.resize(n);
+    parallel_for(n, size_t(1) << 16, threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            const uint32_t t = prep.live[i];
+            root.refs[i] = {tree.triangles[t].bounds(), t};
+        }
+    });
+    KdBuilder builder(tree.triangles, tree.options, progress, threads, memory);
+    return builder.build_binned(std::move(root), tree.bounds, 0, prep.ref_budget);
+}
+
 }  // namespace
 
 Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
@@ -422,11 +639,13 @@ Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                                                           MemoryBudget& memory) {
         TaskCredit credit(memory);
         const size_t n = prep.live.size();
+        const int threads = resolve_threads(options.threads);
+        if (options.build_quality == BuildQuality::Fast && n >= size_t(options.fast_min_refs))
+            return build_binned_root(tree, prep, memory, credit, threads, progress);
         // The lists and, while they are sorted, as much again.
         Charge lists(credit, kEventBytesPerRef * n, 0, "the event lists");
         Charge sorting(credit, kEventBytesPerRef * n, 0, "sorting the event lists");
         EventList axis[3], sort_tmp[3];
-        const int threads = resolve_threads(options.threads);
         // The three axes' event lists are independent: fill and sort them in parallel.
         // Three threads even on two cores: the last axis is then shared
         // rather than left to one core while the other idles.

@@ -86,7 +86,7 @@ def check_spec(case: dict) -> None:
     n2 = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     if not np.any(np.abs(n2.astype(np.float64)).sum(axis=1) > 0):
         return  # nothing that can be hit: build() refuses scenes without triangles
-    method, opts = case["method"], method_options(case)
+    method, opts = case["method"], {**method_options(case), **case.get("options", {})}
     tree = bsplab.build(tris, method=method, **opts)
     rays = agreement.FamilyRays(tris, RAYS_PER_FAMILY, seed=len(tris))
     for name, c in rays.check(tree).items():
@@ -121,6 +121,27 @@ box_scene_specs = st.fixed_dictionaries({
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(box_scene_specs)
 def test_the_bvh_agrees_with_embree_on_random_box_scenes(case):
+    check_spec(case)
+
+
+# kd's fast builds (build_quality="fast"), binned down to nodes of a few
+# references so that the fuzzer's small scenes bin most of their levels.
+fast_kd_specs = st.fixed_dictionaries({
+    "parts": st.lists(part(), min_size=1, max_size=5),
+    "scale_exp": st.integers(-3, 3),
+    "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
+    "method": st.just("kd"),
+    "k": st.just(1),
+    "options": st.fixed_dictionaries({"build_quality": st.just("fast"),
+                                      "fast_min_refs": st.sampled_from([2, 8, 64]),
+                                      "fast_bins": st.sampled_from([2, 5, 32])}),
+})
+
+
+@settings(max_examples=20_000 if LONG else 60, deadline=None, derandomize=not LONG,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(fast_kd_specs)
+def test_fast_kd_trees_agree_with_embree_on_random_scenes(case):
     check_spec(case)
 
 
@@ -163,7 +184,7 @@ def check_instanced_spec(case: dict) -> None:
                                          .astype(np.float64)).sum(axis=1) > 0).any()]
     if len(live) < len(meshes) or not len(idx):
         return  # a mesh without a hittable triangle: build() refuses it
-    method, opts = case["method"], method_options(case)
+    method, opts = case["method"], {**method_options(case), **case.get("options", {})}
     it = bsplab.build_instanced(meshes, idx, mats, method, **opts)
     flat = it.flatten()
     rays = agreement.FamilyRays(flat, RAYS_PER_FAMILY // 2, seed=len(flat))

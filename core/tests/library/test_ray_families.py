@@ -44,9 +44,11 @@ def family_rays(scene_id: str, count: int) -> agreement.FamilyRays:
     return _rays[scene_id]
 
 
-def assert_agrees(scene_id: str, method: str, k: int | None, count: int) -> None:
+def assert_agrees(scene_id: str, method: str, k: int | None, count: int,
+                  options: dict | None = None) -> None:
     rays = family_rays(scene_id, count)
-    tree = bsplab.build(rays.triangles, method=method, **({} if k is None else {"k": k}))
+    tree = bsplab.build(rays.triangles, method=method, **({} if k is None else {"k": k}),
+                        **(options or {}))
     for name, c in rays.check(tree).items():
         bad = c["unexplained"][:4]
         h, ref = c["hits"], rays.rays[name][3]
@@ -86,6 +88,13 @@ def test_families_agree_on_generated_scenes(scene_id, method):
         assert_agrees(scene_id, method, k, 2000)
 
 
+# kd's fast builds (build_quality="fast"): binned down to nodes of 16
+# references on the generated scenes, at the defaults on the shared meshes.
+@pytest.mark.parametrize("scene_id", GENERATED)
+def test_families_agree_on_fast_kd_trees(scene_id):
+    assert_agrees(scene_id, "kd", None, 2000, {"build_quality": "fast", "fast_min_refs": 16})
+
+
 # The default run: meshes full of walls, floors and faces in the scene box's
 # planes, with kd, a ^Kd tree, a tree of general nodes only and the BVH. The full
 # matrix (BSPLAB_TEST_MATRIX=full) runs every method on every shared mesh.
@@ -95,9 +104,14 @@ SHARED_CASES = [(f"shared:{p.stem}", m) for p in SHARED
                 for m in (METHODS if FULL else ("kd", "bsp_wn+kd", "bsp_cn+", "bvh"))]
 
 
+# kd's fast build at its defaults beside kd ("kd/fast"), on the same rays.
+SHARED_CASES = [(s, v) for s, m in SHARED_CASES for v in ((m, m + "/fast") if m == "kd" else (m,))]
+
+
 @pytest.mark.parametrize("scene_id, method", SHARED_CASES)
 def test_families_agree_on_shared_meshes(scene_id, method):
-    assert_agrees(scene_id, method, None, 1500)
+    method, _, quality = method.partition("/")
+    assert_agrees(scene_id, method, None, 1500, {"build_quality": quality} if quality else None)
 
 
 # The first repro of issue 10: a ray entering the unit cube's box onto its
