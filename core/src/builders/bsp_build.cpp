@@ -15,6 +15,7 @@
 #include "builders/cost_model.hpp"
 #include "builders/strategies/directions.hpp"
 #include "builders/strategies/strategy.hpp"
+#include "builders/sweep_bins.hpp"
 #include "parallel.hpp"
 
 namespace bsp {
@@ -53,6 +54,12 @@ struct SweepResult {
 // Nodes with more triangles than this sweep their directions in parallel.
 constexpr size_t kParallelDirections = 8192;
 
+// A binned node (BuildQuality::Fast) counts its references into per-thread
+// bins in chunks of this many references when it has more than
+// kParallelDirections of them: the counts are integers, so the sum is the
+// same whatever thread counted which chunk.
+constexpr size_t kBinChunk = 16384;
+
 // The depth of the stack walking BSP_IZE's per-node BVH: a subtree that
 // would overflow it is counted reference by reference instead.
 constexpr int kRefBvhStack = 128;
@@ -86,11 +93,21 @@ public:
         if (int(n) <= opt_.leaf_size || depth >= opt_.max_depth || !(area > 0))
             return leaf(refs, area, depth, credit);
 
+        // Fast quality bins the candidates of big nodes (SweepBins) and
+        // sweeps every projection below them.
+        const bool binned =
+            opt_.build_quality == BuildQuality::Fast && n >= size_t(std::max(opt_.fast_min_refs, 0));
+
         // The node's scratch space while it looks for a plane: its triangle
-        // ids, the sweeps' position arrays (per thread), BSP_IZE's reference BVH.
+        // ids, the sweeps' position arrays (per thread; a binned node's bins
+        // instead, per direction and chunk), BSP_IZE's reference BVH.
+        const uint64_t sweep_bytes =
+            binned ? binned_scratch_bytes(n)
+                   : uint64_t(n) * 3 * sizeof(float) * uint64_t(threads_);
         Charge scratch(credit,
-                       uint64_t(n) * (sizeof(uint32_t) + 3 * sizeof(float) * uint64_t(threads_) +
-                                      (strategy_->tries_triangle_planes() ? kIzeBytesPerRef : 0)),
+                       uint64_t(n) * (sizeof(uint32_t) +
+                                      (strategy_->tries_triangle_planes() ? kIzeBytesPerRef : 0)) +
+                           sweep_bytes,
                        depth, "a node's sweep buffers");
         Rng rng(Rng::mix(opt_.seed, id));
         std::vector<Vec3> dirs;
@@ -106,7 +123,8 @@ public:
         auto sweep_range = [&](size_t b, size_t e) {
             for (size_t j = b; j < e; ++j) per_dir[j] = sweep(refs, cell, area, dirs[j]);
         };
-        if (threads_ > 1 && n > kParallelDirections) parallel_for(dirs.size(), 1, threads_, sweep_range);
+        if (binned) binned_sweep(refs, cell, area, dirs, per_dir);
+        else if (threads_ > 1 && n > kParallelDirections) parallel_for(dirs.size(), 1, threads_, sweep_range);
         else sweep_range(0, dirs.size());
         for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
         if (strategy_->tries_triangle_planes()) merge(total, ize_planes(refs, cell, area, rng));
@@ -357,6 +375,83 @@ private:
             nl += ns + np;
         }
         return res;
+    }
+
+    // The bins of a binned node, per direction and per chunk of references
+    // counted apart (an upper bound: directions may be fewer than k + 3).
+    uint64_t binned_scratch_bytes(size_t n) const {
+        const uint64_t chunks = n > kParallelDirections && threads_ > 1 ? (n + kBinChunk - 1) / kBinChunk : 1;
+        const uint64_t per_dir = uint64_t(std::max(opt_.fast_bins, 2)) * (sizeof(float) + 2 * sizeof(uint32_t)) +
+                                 sizeof(SweepBins) + sizeof(CellProjection);
+        return chunks * uint64_t(opt_.k + 3) * per_dir;
+    }
+
+    // The fast build quality's sweep of a big node: every direction's
+    // candidates are the inner boundaries of fast_bins equal bins over the
+    // cell's extent (SweepBins), priced with the same areas and cost model
+    // as the exact sweep. One pass over the references projects each on all
+    // directions (its polygon is read once); big nodes count chunks of
+    // references on several threads and add the counts.
+    void binned_sweep(const NodeRefs& nr, const Cell& cell, double area,
+                      const std::vector<Vec3>& dirs, std::vector<SweepResult>& out) const {
+        const size_t n = nr.refs.size(), k = dirs.size();
+        std::vector<CellProjection> cps(k);
+        std::vector<uint8_t> axis_dir(k);
+        std::vector<SweepBins> proto(k);
+        for (size_t j = 0; j < k; ++j) {
+            int axis;
+            axis_dir[j] = is_axis(dirs[j], axis);
+            cps[j].project(cell, Vec3d(dirs[j]));
+            proto[j].reset(cps[j].lo(), cps[j].hi(), opt_.fast_bins);
+        }
+        auto count = [&](size_t b, size_t e, std::vector<SweepBins>& bins) {
+            for (size_t i = b; i < e; ++i) {
+                uint32_t c;
+                const Vec3* v = verts(nr, nr.refs[i], c);
+                for (size_t j = 0; j < k; ++j) {
+                    const Vec3& u = dirs[j];
+                    float lo = proj(u, v[0]), hi = lo;
+                    for (uint32_t q = 1; q < c; ++q) {
+                        const float x = proj(u, v[q]);
+                        lo = std::min(lo, x);
+                        hi = std::max(hi, x);
+                    }
+                    if (!axis_dir[j]) lo -= eps_, hi += eps_;  // as extent() fattens
+                    bins[j].add(lo, hi);
+                }
+            }
+        };
+        std::vector<SweepBins> bins = proto;
+        if (threads_ > 1 && n > kParallelDirections) {
+            const size_t chunks = (n + kBinChunk - 1) / kBinChunk;
+            std::vector<std::vector<SweepBins>> part(chunks, proto);
+            parallel_for(n, kBinChunk, threads_, [&](size_t b, size_t e) {
+                check_stop();
+                count(b, e, part[b / kBinChunk]);
+            });
+            for (const auto& p : part)
+                for (size_t j = 0; j < k; ++j) bins[j].merge(p[j]);
+        } else {
+            count(0, n, bins);
+        }
+
+        const double inv_area = 1.0 / area;
+        for (size_t j = 0; j < k; ++j) {
+            SweepResult& res = out[j];
+            const Vec3& u = dirs[j];
+            const CellProjection& cp = cps[j];
+            const bool kd = opt_.kd_nodes && axis_dir[j];
+            const bool monotone = cp.areas_monotone();
+            double p_below_min = 0;
+            bins[j].for_each_boundary(uint32_t(n), [&](float p, uint32_t nl, uint32_t nr_) {
+                if (!cp.cuts(double(p)) || !may_win(res, kd, n, nl, nr_)) return;
+                if (monotone && !may_win_beyond(res, kd, n, nl, nr_, p_below_min)) return;
+                double below, above;
+                cp.areas_at(double(p), below, above);
+                p_below_min = below * inv_area;
+                offer(res, u, kd, p, true, nl, nr_, below, above, inv_area, n);
+            });
+        }
     }
 
     // BSP_IZE's extra candidates: for (at most ize_candidates) triangles of the

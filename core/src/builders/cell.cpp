@@ -31,6 +31,21 @@ private:
     double xyz_[3 * kCapacity];
 };
 
+// Cell::split's working polygons, kept per thread: a build splits a cell at
+// every node, and allocating and freeing these six vectors there was a good
+// part of malloc's share of the build. Found once per split through this
+// out-of-line call (each use of a thread_local in a shared library is a
+// look-up). add_cap runs inside split and uses ring and poly only.
+struct SplitScratch {
+    std::vector<Vec3d> cap, cap2, below, above;
+    std::vector<std::pair<double, Vec3d>> ring;
+    std::vector<Vec3d> poly;
+};
+[[gnu::noinline]] SplitScratch& split_scratch() {
+    thread_local SplitScratch scratch;
+    return scratch;
+}
+
 bool is_axis_direction(const Vec3d& n) { return (n.x != 0) + (n.y != 0) + (n.z != 0) == 1; }
 
 // A point where an edge crosses the axis plane n.x = d, put exactly on it.
@@ -100,11 +115,13 @@ void Cell::add_cap(const Vec3d& normal, std::vector<Vec3d>& p, double eps) {
     Vec3d e1 = cross(normal, helper);
     e1 = e1 * (1.0 / std::sqrt(dot(e1, e1)));
     const Vec3d e2 = cross(normal, e1);
-    std::vector<std::pair<double, Vec3d>> ring;
-    ring.reserve(p.size());
+    SplitScratch& scratch = split_scratch();
+    auto& ring = scratch.ring;
+    auto& poly = scratch.poly;
+    ring.clear();
+    poly.clear();
     for (const Vec3d& q : p) ring.push_back({std::atan2(dot(q - c, e2), dot(q - c, e1)), q});
     std::sort(ring.begin(), ring.end(), [](auto& a, auto& b) { return a.first < b.first; });
-    std::vector<Vec3d> poly;
     for (auto& r : ring) {
         const Vec3d d = poly.empty() ? Vec3d(1e300, 0, 0) : r.second - poly.back();
         if (dot(d, d) > eps * eps) poly.push_back(r.second);
@@ -141,8 +158,9 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
         part->faces_.reserve(faces_.size() + 1);
         part->pts_.reserve(pts_.size() + 2 * faces_.size());
     }
-    std::vector<Vec3d> cap;
-    std::vector<Vec3d> b, a;
+    SplitScratch& scratch = split_scratch();
+    auto& [cap, cap2, b, a, ring, poly] = scratch;
+    cap.clear();
     for (const Face& f : faces_) {
         b.clear();
         a.clear();
@@ -170,7 +188,7 @@ void Cell::split(const Vec3d& n, double d, Cell& below, Cell& above) const {
     const double len = std::sqrt(dot(n, n));
     const Vec3d un = n * (1.0 / len);
     const double weld = 1e-9 * std::max({hi - lo, std::fabs(lo), std::fabs(hi), 1e-30});
-    std::vector<Vec3d> cap2 = cap;
+    cap2 = cap;
     // Cutting at the cell's own face (d at the end of its extent) leaves a
     // flat cell on one side - that face and the cap, back to back - and the
     // whole cell on the other, which already has that face: no second cap.
@@ -273,32 +291,40 @@ void CellProjection::tabulate() {
     std::sort(breaks_.begin(), breaks_.end());
     breaks_.erase(std::unique(breaks_.begin(), breaks_.end()), breaks_.end());
     const size_t intervals = breaks_.size() > 1 ? breaks_.size() - 1 : 0;
-    coef_.assign(6 * intervals, 0.0);
-    for (size_t j = 0; j < intervals; ++j) {
-        // Sample inside the interval: at the cell's ends the areas jump (a
-        // face lying in the plane counts on one side only), while inside
-        // they are one quadratic. Fit f(s) = a + b s + c s^2 through
-        // s = h/4, h/2, 3h/4.
-        const double h = breaks_[j + 1] - breaks_[j];
-        double f[3][2];
-        for (int i = 0; i < 3; ++i) areas_at(breaks_[j] + 0.25 * (i + 1) * h, f[i][0], f[i][1]);
-        for (int k = 0; k < 2; ++k) {
-            const double c = 8.0 * (f[0][k] - 2.0 * f[1][k] + f[2][k]) / (h * h);
-            const double b = 2.0 * (f[2][k] - f[0][k]) / h - c * h;
-            coef_[6 * j + 3 * k + 0] = f[1][k] - b * 0.5 * h - c * 0.25 * h * h;
-            coef_[6 * j + 3 * k + 1] = b;
-            coef_[6 * j + 3 * k + 2] = c;
-        }
-    }
+    // Each interval's quadratics are fitted when a candidate first falls in
+    // it (fit_interval): most intervals of a small node's cell see no
+    // candidate that survives the sweep's bounds, and fitting them all was
+    // an eighth of a build.
+    coef_.resize(6 * intervals);
+    fitted_.assign(intervals, 0);
 }
 
-void CellProjection::eval(double t, double& below, double& above) const {
+void CellProjection::fit_interval(size_t j) {
+    // Sample inside the interval: at the cell's ends the areas jump (a
+    // face lying in the plane counts on one side only), while inside
+    // they are one quadratic. Fit f(s) = a + b s + c s^2 through
+    // s = h/4, h/2, 3h/4.
+    const double h = breaks_[j + 1] - breaks_[j];
+    double f[3][2];
+    for (int i = 0; i < 3; ++i) areas_at(breaks_[j] + 0.25 * (i + 1) * h, f[i][0], f[i][1]);
+    for (int k = 0; k < 2; ++k) {
+        const double c = 8.0 * (f[0][k] - 2.0 * f[1][k] + f[2][k]) / (h * h);
+        const double b = 2.0 * (f[2][k] - f[0][k]) / h - c * h;
+        coef_[6 * j + 3 * k + 0] = f[1][k] - b * 0.5 * h - c * 0.25 * h * h;
+        coef_[6 * j + 3 * k + 1] = b;
+        coef_[6 * j + 3 * k + 2] = c;
+    }
+    fitted_[j] = 1;
+}
+
+void CellProjection::eval(double t, double& below, double& above) {
     if (coef_.empty() || t <= lo_ || t >= hi_) {
         areas_at(t, below, above);
         return;
     }
     size_t j = size_t(std::upper_bound(breaks_.begin(), breaks_.end(), t) - breaks_.begin());
     j = j == 0 ? 0 : std::min(j - 1, breaks_.size() - 2);
+    if (!fitted_[j]) fit_interval(j);
     const double s = t - breaks_[j];
     const double* c = &coef_[6 * j];
     below = std::max(0.0, c[0] + s * (c[1] + s * c[2]));

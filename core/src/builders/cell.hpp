@@ -86,9 +86,10 @@ public:
     // Between two consecutive vertex projections both areas are quadratic in
     // t, so three exact evaluations per interval tabulate them (ALGORITHMS.md
     // section 3). After tabulate(), eval() is one look-up per candidate
-    // strictly inside the cell (at its ends it evaluates directly).
+    // strictly inside the cell (at its ends it evaluates directly), and the
+    // first candidate in an interval fits that interval.
     void tabulate();
-    void eval(double t, double& below, double& above) const;
+    void eval(double t, double& below, double& above);
 
 private:
     struct FaceInfo {
@@ -105,6 +106,8 @@ private:
     std::vector<FaceInfo> faces_;
     std::vector<double> breaks_;  // sorted distinct projections
     std::vector<double> coef_;    // per interval: below a,b,c then above a,b,c (s = t - break)
+    std::vector<uint8_t> fitted_;  // per interval: its coef_ computed yet
+    void fit_interval(size_t j);
 };
 
 }  // namespace bsp
