@@ -27,8 +27,9 @@ struct KdRef {
     uint32_t tri;
 };
 
-// The side of the plane x[axis] = pos a reference lies on, the one rule
-// that both the bins' counts and the partition of the references follow.
+// The side of the plane x[axis] = pos a reference lies on, by its true
+// bounds: the partition of a binned node's references (the bins' counts
+// estimate it).
 enum class RefSide { Left, Right, Both };
 inline RefSide ref_side(const Box& b, int axis, float pos) {
     const float lo = b.lo[axis], hi = b.hi[axis];
@@ -42,7 +43,7 @@ struct BinnedSplit {
     int axis = -1;
     float pos = 0;
     float cost = kInf;
-    uint32_t n_left = 0, n_right = 0;
+    uint32_t n_left = 0, n_right = 0;  // the bins' estimate of the sides
 };
 
 // The bins of one node: per axis the planes lo + i (hi - lo) / bins for
@@ -92,8 +93,8 @@ public:
 
     // The cheapest binned plane under the cost model, `count` references in
     // the node: left of plane i the boxes starting in bins below i, right of
-    // it those ending in bin i or above. Ties go to the lower axis, then the lower plane (strictly
-    // cheaper wins), as in the exact sweep.
+    // it those ending in bin i or above. Ties go to the lower axis, then the
+    // lower plane (strictly cheaper wins), as in the exact sweep.
     BinnedSplit best(const CostModel& cost, uint32_t count) const {
         BinnedSplit best;
         const float parent_area = box_.area();
