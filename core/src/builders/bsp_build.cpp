@@ -118,16 +118,30 @@ public:
             node_directions(*strategy_, opt_, tris_, tri_ids.data(), n, rng, dirs);
         }
 
-        SweepResult total;
+        // BSP_IZE's triangle planes are one more task beside the directions,
+        // handed out first (the longest): run after the sweeps, the big
+        // nodes' ize_planes kept one of two threads idle. It alone draws
+        // from rng, so the tree is the same whenever it runs.
+        const bool ize = strategy_->tries_triangle_planes();
+        SweepResult total, ize_result;
         std::vector<SweepResult> per_dir(dirs.size());
-        auto sweep_range = [&](size_t b, size_t e) {
-            for (size_t j = b; j < e; ++j) per_dir[j] = sweep(refs, cell, area, dirs[j]);
+        auto task_range = [&](size_t b, size_t e) {
+            for (size_t j = b; j < e; ++j) {
+                if (ize && j == 0) ize_result = ize_planes(refs, cell, area, rng);
+                else per_dir[j - ize] = sweep(refs, cell, area, dirs[j - ize]);
+            }
         };
-        if (binned) binned_sweep(refs, cell, area, dirs, per_dir);
-        else if (threads_ > 1 && n > kParallelDirections) parallel_for(dirs.size(), 1, threads_, sweep_range);
-        else sweep_range(0, dirs.size());
+        const size_t tasks = dirs.size() + ize;
+        if (binned) {
+            binned_sweep(refs, cell, area, dirs, per_dir);
+            if (ize) ize_result = ize_planes(refs, cell, area, rng);
+        } else if (threads_ > 1 && n > kParallelDirections) {
+            parallel_for(tasks, 1, threads_, task_range);
+        } else {
+            task_range(0, tasks);
+        }
         for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
-        if (strategy_->tries_triangle_planes()) merge(total, ize_planes(refs, cell, area, rng));
+        if (ize) merge(total, ize_result);
 
         const float leaf_cost = cost_.leaf(n);
         Candidate s = total.best;
