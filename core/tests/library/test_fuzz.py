@@ -124,14 +124,15 @@ def test_the_bvh_agrees_with_embree_on_random_box_scenes(case):
     check_spec(case)
 
 
-# kd's fast builds (build_quality="fast"), binned down to nodes of a few
-# references so that the fuzzer's small scenes bin most of their levels.
-fast_kd_specs = st.fixed_dictionaries({
+# Fast builds (build_quality="fast") of kd and the sweep builder, binned down
+# to nodes of a few references so that the fuzzer's small scenes bin most of
+# their levels.
+fast_specs = st.fixed_dictionaries({
     "parts": st.lists(part(), min_size=1, max_size=5),
     "scale_exp": st.integers(-3, 3),
     "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
-    "method": st.just("kd"),
-    "k": st.just(1),
+    "method": st.sampled_from(["kd", "bsp_wn+kd", "bsp_ize+kd", "bsp_random"]),
+    "k": st.integers(3, 6),
     "options": st.fixed_dictionaries({"build_quality": st.just("fast"),
                                       "fast_min_refs": st.sampled_from([2, 8, 64]),
                                       "fast_bins": st.sampled_from([2, 5, 32])}),
@@ -140,8 +141,8 @@ fast_kd_specs = st.fixed_dictionaries({
 
 @settings(max_examples=20_000 if LONG else 60, deadline=None, derandomize=not LONG,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-@given(fast_kd_specs)
-def test_fast_kd_trees_agree_with_embree_on_random_scenes(case):
+@given(fast_specs)
+def test_fast_trees_agree_with_embree_on_random_scenes(case):
     check_spec(case)
 
 

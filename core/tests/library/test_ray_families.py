@@ -95,6 +95,16 @@ def test_families_agree_on_fast_kd_trees(scene_id):
     assert_agrees(scene_id, "kd", None, 2000, {"build_quality": "fast", "fast_min_refs": 16})
 
 
+# The sweep builder's fast builds: binned down to nodes of 16 references, so
+# that most levels of the generated scenes' trees take binned general planes
+# (bsp_wn+kd), binned planes beside the triangles' own (bsp_ize+kd), or
+# binned planes only (bsp_cn, no kd nodes).
+@pytest.mark.parametrize("scene_id", GENERATED)
+@pytest.mark.parametrize("method, k", [("bsp_wn+kd", 6), ("bsp_ize+kd", None), ("bsp_cn", 4)])
+def test_families_agree_on_fast_sweep_trees(scene_id, method, k):
+    assert_agrees(scene_id, method, k, 2000, {"build_quality": "fast", "fast_min_refs": 16})
+
+
 # The default run: meshes full of walls, floors and faces in the scene box's
 # planes, with kd, a ^Kd tree, a tree of general nodes only and the BVH. The full
 # matrix (BSPLAB_TEST_MATRIX=full) runs every method on every shared mesh.
