@@ -515,7 +515,19 @@ bool trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
                     stack[top++] = {exit, far_t0, t1};
                 index = entry;
                 t1 = std::min(t1, t_hi);
+                continue;
             }
+            // One child over the same [t0, t1] (or, in the in-plane walk,
+            // the entry child of a plane the ray lies in, its exit child
+            // pushed): on incoherent rays an empty one is counted as visited
+            // and the next cell popped at once, without the loop turn
+            // (callgrind, bunny random: 1 mispredict a ray fewer; on camera
+            // rays 2.4 more, for 18 more branches: not there).
+            if constexpr (kPrefetchAbove)
+                if (is_empty_leaf(nodes[index])) {
+                    count.step(index, t0, t1, t_e);
+                    goto next_cell;
+                }
             continue;
         }
         // Empty leaves (most leaves of a kd tree) have nothing to test.
