@@ -318,7 +318,8 @@ inline bool pop_cell(const InPlaneStackEntry* stack, int& top, float reach, uint
 // for trees without general nodes (TreeView::has_general): every interior
 // node is then a kd node, and the general node's plane arithmetic and its
 // branch drop out of the hot loop. kPrefetchAbove: the loop for incoherent
-// rays (trace_single_rays). kInPlane: the in-plane walk (in_plane.hpp),
+// rays (trace_single_rays), which also skips more empty children from their
+// parent (see the three cases below). kInPlane: the in-plane walk (in_plane.hpp),
 // which remembers the planes the ray lies in and skips their flat cells.
 // The ordinary walk returns false, its work undone, for a ray that may lie
 // in a kd plane (at its start) or a general one (at the first general node
@@ -517,12 +518,11 @@ bool trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
                 t1 = std::min(t1, t_hi);
                 continue;
             }
-            // One child over the same [t0, t1] (or, in the in-plane walk,
-            // the entry child of a plane the ray lies in, its exit child
-            // pushed): on incoherent rays an empty one is counted as visited
-            // and the next cell popped at once, without the loop turn
-            // (callgrind, bunny random: 1 mispredict a ray fewer; on camera
-            // rays 2.4 more, for 18 more branches: not there).
+            // One child over the same [t0, t1]: on incoherent rays an empty
+            // one is counted as visited and the next cell popped at once,
+            // without the loop turn (callgrind, bunny random: 1 mispredict a
+            // ray fewer; on camera rays 2.4 more, for 18 more branches: not
+            // there, nor in the in-plane walk, which takes the plain loop).
             if constexpr (kPrefetchAbove)
                 if (is_empty_leaf(nodes[index])) {
                     count.step(index, t0, t1, t_e);
