@@ -25,7 +25,9 @@ struct HitBatch {
     float* v;
     // The counters: all five arrays, or all five null for the hits-only
     // path, which is compiled without any counting (same hits, bit for bit).
-    uint32_t* steps = nullptr;          // nodes visited, of every kind
+    // Nodes visited, of every kind. An empty leaf the walk skips from its
+    // parent (single_ray.hpp) still counts: the counts are the walk's nodes.
+    uint32_t* steps = nullptr;
     uint32_t* general_steps = nullptr;  // general (plane) nodes among them
     uint32_t* tests = nullptr;          // ray-triangle tests performed
     uint32_t* culled = nullptr;         // tests skipped by the segment-box check

@@ -143,16 +143,19 @@ def test_the_core_rejects_some_counter_arrays_without_the_others(room):
                                steps, None, None, None, None, 1, False, None)
 
 
+@pytest.mark.parametrize("method", ["kd", "bsp_wn"])
 @pytest.mark.parametrize("scene_id", SCENES)
-def test_both_stepping_loops_give_the_counting_paths_hits(scene_id):
+def test_both_stepping_loops_give_the_counting_paths_hits(scene_id, method):
     """The hits-only path picks its loop per range of rays: camera rays in
     pixel order are coherent (the plain loop), random rays are not (the loop
-    that prefetches the child above every kd node; single_ray.hpp,
+    that prefetches the child above every kd node and skips empty children
+    from their parent without pushing them; single_ray.hpp,
     ray_coherence.hpp). Each, and a batch of both halves split between two
-    threads, must give the counting path's hits."""
+    threads, must give the counting path's hits, on kd trees and on trees of
+    general nodes."""
     from bsplab import workloads
     tris = load_scene(scene_id)
-    tree = bsplab.build(tris, method="kd")
+    tree = bsplab.build(tris, method=method)
     co, cd = workloads.primary_rays(tris, 40, 30)
     ro, rd = workloads.random_rays(tris, 1200)
     batches = {"camera": (co, cd), "random": (ro, rd),
@@ -163,3 +166,25 @@ def test_both_stepping_loops_give_the_counting_paths_hits(scene_id):
         for threads in (1, 2):
             assert_same_hits(counted, tree.intersect(o, d, threads=threads, counters=False),
                              f"{scene_id} {name} threads={threads}")
+
+
+@pytest.mark.parametrize("method", ["kd", "bsp_wn"])
+def test_empty_leaves_skipped_from_their_parent_still_count_as_steps(method):
+    """The walk skips an empty child from its parent (single_ray.hpp): no
+    loop turn, no stack entry. A step is still a node the walk visits in the
+    old sense, so the skipped leaf is counted, and recorded by trace_path with
+    its range, on every path alike (docs/performance.md)."""
+    from bsplab import workloads
+    tris = load_scene("gen:room")
+    tree = bsplab.build(tris, method=method)
+    o, d = workloads.random_rays(tris, 60)
+    counted = tree.intersect(o, d, threads=1)
+    empty_leaves = 0
+    for i in range(len(o)):
+        path = tree.trace_path(o[i], d[i])
+        assert path["steps"] == counted["steps"][i], i
+        assert len(path["node"]) == path["steps"], i
+        leaf_rows = np.flatnonzero(path["kind"] == bsplab.tree.KINDS.index("leaf"))
+        # Leaves with no triangle reference recorded are the empty ones.
+        empty_leaves += len(set(leaf_rows) - set(path["test_step"].tolist()))
+    assert empty_leaves > 0

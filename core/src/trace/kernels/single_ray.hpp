@@ -94,6 +94,11 @@ bool clip_to_box(const Box& b, const float o[3], const float inv[3], const float
     return true;
 }
 
+// A leaf without triangles: its whole 8 bytes' `bits` are the leaf tag
+// (count 0), so one compare of the child's bits tells it.
+constexpr uint32_t kEmptyLeafBits = Node::kLeafTag;
+inline bool is_empty_leaf(const Node& n) { return n.bits == kEmptyLeafBits; }
+
 struct StackEntry {
     uint32_t node;
     float tmin, tmax;
@@ -313,7 +318,8 @@ inline bool pop_cell(const InPlaneStackEntry* stack, int& top, float reach, uint
 // for trees without general nodes (TreeView::has_general): every interior
 // node is then a kd node, and the general node's plane arithmetic and its
 // branch drop out of the hot loop. kPrefetchAbove: the loop for incoherent
-// rays (trace_single_rays). kInPlane: the in-plane walk (in_plane.hpp),
+// rays (trace_single_rays), which also skips more empty children from their
+// parent (see the three cases below). kInPlane: the in-plane walk (in_plane.hpp),
 // which remembers the planes the ray lies in and skips their flat cells.
 // The ordinary walk returns false, its work undone, for a ray that may lie
 // in a kd plane (at its start) or a general one (at the first general node
@@ -374,6 +380,10 @@ bool trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
         }
     }
 
+    // Skipping an empty exit child changes which nodes the walk visits
+    // (steps), so only the hits-only path does it (see below).
+    constexpr bool kSkipEmptyExit =
+        kPrefetchAbove && std::is_same_v<Counters, CountNothing>;
     for (;;) {
         const Node node = nodes[index];
         count.step(index, t0, t1, t_e);
@@ -473,22 +483,58 @@ bool trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, f
                     }
                 }
             } else {
+                const float far_t0 = std::max(t0, t_lo);
+                // An empty entry child (most leaves of a kd tree are empty)
+                // has nothing to test: counted as visited, as the walk
+                // visits it, but the ray goes straight on to the exit child,
+                // without pushing it, a loop turn, and popping it back. Its
+                // node is the one the next step would load anyway.
+                if (is_empty_leaf(nodes[entry])) {
+                    count.step(entry, t0, std::min(t1, t_hi), t_e);
+                    // pop_cell's early exit for the exit child.
+                    if (hit.reach < far_t0) goto next_cell;
+                    index = exit;
+                    t0 = far_t0;
+                    continue;
+                }
+                // An empty exit child need not be pushed, on the hits-only
+                // path for incoherent rays (whose exit child has been
+                // fetched: kPrefetchAbove). The counting paths push it, so
+                // that it counts as a step when popped, as before.
+                if constexpr (kSkipEmptyExit)
+                    if (is_empty_leaf(nodes[exit])) {
+                        index = entry;
+                        t1 = std::min(t1, t_hi);
+                        continue;
+                    }
                 // The far child is visited later, unless a hit ends the ray
                 // first: fetch its node meanwhile.
                 __builtin_prefetch(nodes + exit);
                 if constexpr (kInPlane)
-                    stack[top++] = {{exit, std::max(t0, t_lo), t1}, sides};
+                    stack[top++] = {{exit, far_t0, t1}, sides};
                 else
-                    stack[top++] = {exit, std::max(t0, t_lo), t1};
+                    stack[top++] = {exit, far_t0, t1};
                 index = entry;
                 t1 = std::min(t1, t_hi);
+                continue;
             }
+            // One child over the same [t0, t1]: on incoherent rays an empty
+            // one is counted as visited and the next cell popped at once,
+            // without the loop turn (callgrind, bunny random: 1 mispredict a
+            // ray fewer; on camera rays 2.4 more, for 18 more branches: not
+            // there, nor in the in-plane walk, which takes the plain loop).
+            if constexpr (kPrefetchAbove)
+                if (is_empty_leaf(nodes[index])) {
+                    count.step(index, t0, t1, t_e);
+                    goto next_cell;
+                }
             continue;
         }
         // Empty leaves (most leaves of a kd tree) have nothing to test.
         if (node.count() != 0)
             intersect_leaf<kBoxes, kSimdLeaves>(tree, node, index, sray, org, dir, t0, t1, tmin,
                                                 t_e, pad, mailbox, hit, count);
+    next_cell:
         // Early exit: pop_cell skips every cell that starts beyond the
         // closest hit. (Not `hit.t <= t1` here: with widened crossings, and
         // for rays in a plane, a cell still on the stack may start before
