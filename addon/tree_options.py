@@ -94,9 +94,13 @@ def method_enum_items(_self, _context):
 
 
 def method_changed(self, _context):
-    """Load the new method's own defaults (K differs between methods)."""
+    """Load the new method's own defaults (K differs between methods). An
+    option of PANEL_DEFAULTS keeps its value (the panel's default, or what
+    the user chose) unless the method has a default of its own for it."""
     info = backend.methods().get(self.method, {})
     for name, value in info.get("defaults", {}).items():
+        if name in PANEL_DEFAULTS and value == OPTION_SCHEMA.get(name, {}).get("default"):
+            continue
         if name in BUILD_OPTIONS and hasattr(self, name):
             try:
                 setattr(self, name, value)

@@ -144,10 +144,26 @@ def test_the_button_builds_fast_by_default(addon, core):
 def test_method_defaults_fit_the_properties(addon, core):
     """Choosing a method loads its own defaults (K differs between methods)."""
     scene = utils.reset_file()
+    panel = addon.tree_options.PANEL_DEFAULTS
     for method, info in core.methods().items():
         scene.bsplab.method = method
         for name, value in info["defaults"].items():
+            if name in panel:  # the panel's own default stands (below)
+                continue
             assert getattr(scene.bsplab, name) == pytest.approx(value), (method, name)
+
+
+def test_choosing_a_method_keeps_the_build_quality(addon, core):
+    """The methods' tables list build_quality's registry default (exact);
+    choosing a method must not undo the panel's fast, nor the user's exact."""
+    scene = utils.reset_file()
+    assert scene.bsplab.build_quality == "fast"
+    for method in ("bsp_wn+kd", "kd", "bsp_ize+kd"):
+        scene.bsplab.method = method
+        assert scene.bsplab.build_quality == "fast", method
+    scene.bsplab.build_quality = "exact"
+    scene.bsplab.method = "bsp_wn+kd"
+    assert scene.bsplab.build_quality == "exact"
 
 
 def test_fallback_render_modes_are_the_cores(addon, core):
