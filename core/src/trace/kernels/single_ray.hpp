@@ -10,6 +10,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "trace/kernel_inlining.hpp"
 #include "trace/traverse.hpp"
 #include "trace/triangle.hpp"
 #include "trace/kernels/in_plane.hpp"
@@ -188,7 +189,7 @@ constexpr float kSimdLeafMean = 6.0f;
 // still inlined, see trace_kernels.cpp): inlined, the blocks' code made the
 // rest of the traversal loop slower even where no leaf took them.
 template <uint32_t L, LeafBoxes kBoxes>
-__attribute__((noinline, flatten)) void intersect_leaf_hits_only(
+__attribute__((noinline)) BSPLAB_KERNEL_FLATTEN void intersect_leaf_hits_only(
     const TreeView& tree, Node node, const uint32_t* list, uint32_t n_refs,
     const ShearedRay& sray, const float org[3], const float dir[3], float t0, float t1,
     float tmin, double t_e, float pad, Closest& hit) {
@@ -621,7 +622,7 @@ inline bool trace_ray_at(const TreeView& view, const RayBatch& rays, const HitBa
 // through the in-plane walk. Out of line: a call in the ray loop itself,
 // even one never taken, cost the ordinary walk 2-3 % of its instructions.
 template <LeafBoxes kBoxes, bool kGeneral, class Counters>
-__attribute__((noinline, flatten)) void trace_in_plane_rays(const TreeView& view,
+__attribute__((noinline)) BSPLAB_KERNEL_FLATTEN void trace_in_plane_rays(const TreeView& view,
                                                             const RayBatch& rays,
                                                             const HitBatch& hits, size_t begin,
                                                             size_t end) {

@@ -6,10 +6,12 @@
 // everything here has internal linkage (the kernel headers' anonymous
 // namespace), and every exported entry is `flatten`, so the shared headers'
 // inline functions (the triangle test, the node accessors) are inlined rather
-// than emitted as out-of-line copies the linker could pick for another level.
+// than emitted as out-of-line copies the linker could pick for another level
+// (sanitizer builds keep the rule another way: trace/kernel_inlining.hpp).
 // CMake checks the second rule on the object files (cmake/check_kernel_objects.cmake).
 // -ffp-contract=off on every level: no fused multiply-add, so each level's
 // arithmetic - and so its hits - is bit-identical to the baseline's.
+#include "trace/kernel_inlining.hpp"
 #include "trace/kernels/bvh_single_ray.hpp"
 #include "trace/kernels/bvh_wide_single_ray.hpp"
 #include "trace/kernels/kernel_set.hpp"
@@ -23,24 +25,24 @@ namespace bsp::BSPLAB_ISA_NS {
 namespace {
 
 template <LeafBoxes kBoxes, class Counters>
-__attribute__((flatten)) void single_ray_entry(const TreeView& view, const RayBatch& rays,
+BSPLAB_KERNEL_FLATTEN void single_ray_entry(const TreeView& view, const RayBatch& rays,
                                                const HitBatch& hits, size_t begin, size_t end) {
     trace_single_rays<kBoxes, Counters>(view, rays, hits, begin, end);
 }
 
-__attribute__((flatten)) void packet_entry(const TreeView& view, const RayBatch& rays,
+BSPLAB_KERNEL_FLATTEN void packet_entry(const TreeView& view, const RayBatch& rays,
                                            const HitBatch& hits, size_t begin, size_t end) {
     trace_packets(view, rays, hits, begin, end);
 }
 
 template <class Counters>
-__attribute__((flatten)) void bvh_entry(const TreeView& view, const RayBatch& rays,
+BSPLAB_KERNEL_FLATTEN void bvh_entry(const TreeView& view, const RayBatch& rays,
                                         const HitBatch& hits, size_t begin, size_t end) {
     bvh_trace_rays<Counters>(view, rays, hits, begin, end);
 }
 
 template <class Counters>
-__attribute__((flatten)) void bvh_wide_entry(const TreeView& view, const RayBatch& rays,
+BSPLAB_KERNEL_FLATTEN void bvh_wide_entry(const TreeView& view, const RayBatch& rays,
                                              const HitBatch& hits, size_t begin, size_t end) {
     bvh_wide_trace_rays<Counters>(view, rays, hits, begin, end);
 }
