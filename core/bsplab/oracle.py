@@ -322,9 +322,7 @@ def leaks(ours: dict, ref: dict, *, triangles, origins, directions, tmax=None,
                                 + shift)[:, None]
     # Excused: near an edge the ray does not cross the surface through - an
     # open edge, or a silhouette edge (mesh_edges.crosses_surface).
-    groups = mesh_edges.edge_groups(tris)
-    ids = mesh_edges.triangle_ids(tris)
-    shared = mesh_edges.shared_mask(tris, distinct=True)
+    groups, ids, shared = mesh_edges.edge_tables(tris)
     excused = np.zeros(len(idx), bool)
     for row, edge in zip(*np.nonzero(near)):
         if not excused[row] and not mesh_edges.crosses_surface(

@@ -67,6 +67,23 @@ SLOW_ON_SCENES = {
 SANITIZER_SLOW_ON_PARAMS = {
     "test_tree_geometry.py::test_cells_of_a_level_tile_the_root_box": ("None-",),
 }
+# The files whose fast part the sanitizer run keeps: those that drive the
+# core's C++ (every builder, every kernel and path, culling, the in-plane
+# walk, instancing, inspection, input checks, the fuzzer) on small scenes.
+# The others re-trace the same kernels on many more rays (test_agreement,
+# test_ray_families, test_paths_agree) or do their work in Python (the
+# oracle's checks, the lab's bookkeeping, PLY files and images, the CLI's
+# subprocesses, the add-on's jobs); at 3-5 times their time under ASan +
+# UBSan they took most of CI's 90 minutes on its 2-core machine.
+SANITIZER_FILES = {
+    "test_bad_input.py", "test_bsp.py", "test_builder_parity.py", "test_bvh.py",
+    "test_camera.py", "test_culling.py", "test_degenerate_warnings.py",
+    "test_edge_robustness.py", "test_fuzz.py", "test_hits_only.py", "test_in_plane_walk.py",
+    "test_instanced.py", "test_isa_levels.py", "test_kd_fast.py", "test_kd_only_traversal.py",
+    "test_kd_tree.py", "test_leaf_simd.py", "test_memory_limit.py", "test_packets.py",
+    "test_registry.py", "test_render_progress.py", "test_sweep_fast.py",
+    "test_tree_geometry.py",
+}
 SANITIZER_SLOW_TESTS = {
     "test_lab.py::test_bench_cull_pairs_culling_on_with_off",
     "test_lab.py::test_bench_writes_a_row_per_scene_and_method",
@@ -77,7 +94,8 @@ def is_slow(item) -> bool:
     name = f"{item.path.name}::{getattr(item, 'originalname', item.name)}"
     params = item.callspec.id if hasattr(item, "callspec") else ""
     if os.environ.get("BSPLAB_EXPECT_CORE") and (
-            name in SANITIZER_SLOW_TESTS
+            item.path.name not in SANITIZER_FILES
+            or name in SANITIZER_SLOW_TESTS
             or any(s in params for s in SANITIZER_SLOW_ON_PARAMS.get(name, ()))):
         return True
     return ("shared:" in params or "shared_scene" in name or "shared_mesh" in name

@@ -59,8 +59,9 @@ _rays: dict = {}
 
 
 def leak_rays(scene_id: str, count: int = 1500) -> dict:
+    """The crossing families' rays and Embree's answers, made once a scene
+    (the tests take the generated scenes in turn, method by method)."""
     if scene_id not in _rays:
-        _rays.clear()
         tris = load_scene(scene_id)
         emb = oracle.EmbreeTracer(tris)
         fams = {}

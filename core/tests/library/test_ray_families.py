@@ -38,8 +38,13 @@ KNOWN_LEAKS: dict = {}
 
 
 def family_rays(scene_id: str, count: int) -> agreement.FamilyRays:
+    """The scene's rays and Embree's answers, made once: every generated
+    scene's are kept (the tests take the scenes in turn, method by method),
+    a shared mesh's only until the next shared mesh."""
     if scene_id not in _rays:
-        _rays.clear()
+        if scene_id.startswith("shared:"):
+            for key in [k for k in _rays if k.startswith("shared:")]:
+                del _rays[key]
         _rays[scene_id] = agreement.FamilyRays(load_scene(scene_id), count, seed=11)
     return _rays[scene_id]
 
