@@ -71,14 +71,14 @@ SANITIZER_SLOW_ON_PARAMS = {
 # core's C++ (every builder, every kernel and path, culling, the in-plane
 # walk, instancing, inspection, input checks, the fuzzer) on small scenes.
 # The others re-trace the same kernels on many more rays (test_agreement,
-# test_ray_families, test_paths_agree) or do their work in Python (the
+# test_ray_families, test_paths_agree, test_edge_robustness) or do their
+# work in Python (the
 # oracle's checks, the lab's bookkeeping, PLY files and images, the CLI's
 # subprocesses, the add-on's jobs); at 3-5 times their time under ASan +
 # UBSan they took most of CI's 90 minutes on its 2-core machine.
 SANITIZER_FILES = {
     "test_bad_input.py", "test_bsp.py", "test_builder_parity.py", "test_bvh.py",
-    "test_camera.py", "test_culling.py", "test_degenerate_warnings.py",
-    "test_edge_robustness.py", "test_fuzz.py", "test_hits_only.py", "test_in_plane_walk.py",
+    "test_camera.py", "test_culling.py", "test_degenerate_warnings.py", "test_fuzz.py", "test_hits_only.py", "test_in_plane_walk.py",
     "test_instanced.py", "test_isa_levels.py", "test_kd_fast.py", "test_kd_only_traversal.py",
     "test_kd_tree.py", "test_leaf_simd.py", "test_memory_limit.py", "test_packets.py",
     "test_registry.py", "test_render_progress.py", "test_sweep_fast.py",

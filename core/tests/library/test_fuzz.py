@@ -27,6 +27,13 @@ embreex = pytest.importorskip("embreex", reason="embreex is the oracle")
 from hypothesis import HealthCheck, given, settings, strategies as st  # noqa: E402
 
 LONG = os.environ.get("BSPLAB_FUZZ") == "long"
+# Under the sanitizers (core/tools/sanitize.sh) a third of the examples:
+# each runs 3-5 times slower there.
+SANITIZED = bool(os.environ.get("BSPLAB_EXPECT_CORE"))
+
+
+def examples(n: int) -> int:
+    return 20_000 if LONG else (n // 3 if SANITIZED else n)
 METHODS = bsplab.methods()
 REGRESSIONS = Path(__file__).with_name("fuzz_regressions.json")
 RAYS_PER_FAMILY = 120
@@ -99,7 +106,7 @@ def check_spec(case: dict) -> None:
         assert_none(c["leaks"], f"{name} rays leak", label, case, o, d, c["hits"], ref)
 
 
-@settings(max_examples=20_000 if LONG else 150, deadline=None, derandomize=not LONG,
+@settings(max_examples=examples(150), deadline=None, derandomize=not LONG,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(scene_specs)
 def test_every_method_agrees_with_embree_on_random_scenes(case):
@@ -117,7 +124,7 @@ box_scene_specs = st.fixed_dictionaries({
 })
 
 
-@settings(max_examples=20_000 if LONG else 60, deadline=None, derandomize=not LONG,
+@settings(max_examples=examples(60), deadline=None, derandomize=not LONG,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(box_scene_specs)
 def test_the_bvh_agrees_with_embree_on_random_box_scenes(case):
@@ -139,7 +146,7 @@ fast_specs = st.fixed_dictionaries({
 })
 
 
-@settings(max_examples=20_000 if LONG else 60, deadline=None, derandomize=not LONG,
+@settings(max_examples=examples(60), deadline=None, derandomize=not LONG,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(fast_specs)
 def test_fast_trees_agree_with_embree_on_random_scenes(case):
@@ -206,7 +213,7 @@ def check_instanced_spec(case: dict) -> None:
             assert_none(leak, f"{name} rays leak", label, case, o, d, ours, ref)
 
 
-@settings(max_examples=20_000 if LONG else 40, deadline=None, derandomize=not LONG,
+@settings(max_examples=examples(40), deadline=None, derandomize=not LONG,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(instanced_specs)
 def test_instanced_scenes_agree_with_embree_on_the_flattened_scene(case):
