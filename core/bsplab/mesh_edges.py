@@ -131,13 +131,18 @@ def shared_mask(tris: np.ndarray, distinct: bool = False) -> np.ndarray:
     """(N, 3) bool: edge j of triangle i (vertex j to j + 1) is shared. With
     `distinct`, only by another triangle than a duplicate of triangle i: a
     doubled open grid's border is still a border (the leak check's view)."""
-    a, b = triangle_edges(tris)
-    _, inverse = np.unique(edge_keys(a, b), axis=0, return_inverse=True)
-    inverse = inverse.ravel()
+    groups = edge_groups(tris)
     if not distinct:
-        return (np.bincount(inverse)[inverse] >= 2).reshape(-1, 3)
-    pairs = np.unique(np.stack([inverse, np.repeat(triangle_ids(tris), 3)], axis=1), axis=0)
-    return (np.bincount(pairs[:, 0], minlength=inverse.max() + 1)[inverse] >= 2).reshape(-1, 3)
+        return (np.bincount(groups)[groups] >= 2).reshape(-1, 3)
+    return _shared_by_others(groups, triangle_ids(tris))
+
+
+def _shared_by_others(groups: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """shared_mask(distinct=True) from the mesh's edge_groups and
+    triangle_ids: an edge counts as shared when triangles of two numbers
+    have it."""
+    pairs = np.unique(np.stack([groups, np.repeat(ids, 3)], axis=1), axis=0)
+    return (np.bincount(pairs[:, 0], minlength=groups.max() + 1)[groups] >= 2).reshape(-1, 3)
 
 
 def shared_edges(tris: np.ndarray) -> np.ndarray:
@@ -167,7 +172,8 @@ def edge_tables(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if key in _TABLES:
         _TABLES.move_to_end(key)
         return _TABLES[key]
-    tables = (edge_groups(t), triangle_ids(t), shared_mask(t, distinct=True))
+    groups, ids = edge_groups(t), triangle_ids(t)
+    tables = (groups, ids, _shared_by_others(groups, ids))
     for a in tables:
         a.setflags(write=False)
     _TABLES[key] = tables

@@ -45,7 +45,7 @@ def pytest_report_header(config):
 # every method; the experiment runner's tests (Python bookkeeping around
 # the same builds and traces). What is left (`-m "not slow"`) still builds
 # every method and traces with and without culling; core/tools/sanitize.sh
-# runs it under ASan + UBSan (about 10 minutes in CI).
+# runs the part of it in SANITIZER_FILES under ASan + UBSan (9 minutes).
 SLOW_TESTS = {
     "test_agreement.py::test_build_is_deterministic_across_thread_counts",
     "test_bsp.py::test_more_directions_find_cheaper_trees",
@@ -58,6 +58,24 @@ SLOW_ON_SCENES = {
 }
 
 
+# The files whose fast part the sanitizer run keeps: those that drive the
+# core's C++ (every builder, every kernel and path, culling, the in-plane
+# walk, instancing, inspection, input checks, the fuzzer) on small scenes.
+# The others re-trace the same kernels on many more rays (test_agreement,
+# test_ray_families, test_paths_agree, test_edge_robustness) or do their
+# work in Python (the oracle's checks, the lab's bookkeeping, PLY files and
+# images, the CLI's subprocesses, the add-on's jobs); at 3-5 times their
+# time under ASan + UBSan they took most of CI's 90 minutes on its 2-core
+# machine.
+SANITIZER_FILES = {
+    "test_bad_input.py", "test_bsp.py", "test_builder_parity.py", "test_bvh.py",
+    "test_camera.py", "test_culling.py", "test_degenerate_warnings.py", "test_fuzz.py",
+    "test_hits_only.py", "test_in_plane_walk.py", "test_instanced.py", "test_isa_levels.py",
+    "test_kd_fast.py", "test_kd_only_traversal.py", "test_kd_tree.py", "test_leaf_simd.py",
+    "test_memory_limit.py", "test_packets.py", "test_registry.py", "test_render_progress.py",
+    "test_sweep_fast.py", "test_tree_geometry.py",
+}
+
 # Also slow under the sanitizers (core/tools/sanitize.sh sets
 # BSPLAB_EXPECT_CORE): cases whose time there goes to Python-side checking
 # or timing, not to core code the fast part leaves unsanitized. The cell
@@ -66,23 +84,6 @@ SLOW_ON_SCENES = {
 # paired traces (they run unsanitized in the core suite).
 SANITIZER_SLOW_ON_PARAMS = {
     "test_tree_geometry.py::test_cells_of_a_level_tile_the_root_box": ("None-",),
-}
-# The files whose fast part the sanitizer run keeps: those that drive the
-# core's C++ (every builder, every kernel and path, culling, the in-plane
-# walk, instancing, inspection, input checks, the fuzzer) on small scenes.
-# The others re-trace the same kernels on many more rays (test_agreement,
-# test_ray_families, test_paths_agree, test_edge_robustness) or do their
-# work in Python (the
-# oracle's checks, the lab's bookkeeping, PLY files and images, the CLI's
-# subprocesses, the add-on's jobs); at 3-5 times their time under ASan +
-# UBSan they took most of CI's 90 minutes on its 2-core machine.
-SANITIZER_FILES = {
-    "test_bad_input.py", "test_bsp.py", "test_builder_parity.py", "test_bvh.py",
-    "test_camera.py", "test_culling.py", "test_degenerate_warnings.py", "test_fuzz.py", "test_hits_only.py", "test_in_plane_walk.py",
-    "test_instanced.py", "test_isa_levels.py", "test_kd_fast.py", "test_kd_only_traversal.py",
-    "test_kd_tree.py", "test_leaf_simd.py", "test_memory_limit.py", "test_packets.py",
-    "test_registry.py", "test_render_progress.py", "test_sweep_fast.py",
-    "test_tree_geometry.py",
 }
 SANITIZER_SLOW_TESTS = {
     "test_lab.py::test_bench_cull_pairs_culling_on_with_off",

@@ -66,8 +66,9 @@ inline float component(const Vec3& v, int k) {
 // tmin < t < tmax, or t == tmax when `tie_wins` (the traversal's tie rule:
 // of equally close hits the smallest triangle index wins, single_ray.hpp).
 // u, v follow Embree: p = (1-u-v) v0 + u v1 + v v2.
-BSPLAB_KERNEL_SHARED_INLINE bool intersect_triangle(const ShearedRay& r, const Triangle& tri, float tmin, float tmax,
-                               TriangleHit& hit, bool tie_wins = false) {
+BSPLAB_KERNEL_SHARED_INLINE bool intersect_triangle(const ShearedRay& r, const Triangle& tri,
+                                                    float tmin, float tmax, TriangleHit& hit,
+                                                    bool tie_wins = false) {
     const Vec3 A = tri.v[0] - r.org, B = tri.v[1] - r.org, C = tri.v[2] - r.org;
     const float Az = component(A, r.kz), Bz = component(B, r.kz), Cz = component(C, r.kz);
     const float Ax = component(A, r.kx) - r.sx * Az, Ay = component(A, r.ky) - r.sy * Az;

@@ -34,6 +34,8 @@ SANITIZED = bool(os.environ.get("BSPLAB_EXPECT_CORE"))
 
 def examples(n: int) -> int:
     return 20_000 if LONG else (n // 3 if SANITIZED else n)
+
+
 METHODS = bsplab.methods()
 REGRESSIONS = Path(__file__).with_name("fuzz_regressions.json")
 RAYS_PER_FAMILY = 120

@@ -622,10 +622,8 @@ inline bool trace_ray_at(const TreeView& view, const RayBatch& rays, const HitBa
 // through the in-plane walk. Out of line: a call in the ray loop itself,
 // even one never taken, cost the ordinary walk 2-3 % of its instructions.
 template <LeafBoxes kBoxes, bool kGeneral, class Counters>
-__attribute__((noinline)) BSPLAB_KERNEL_FLATTEN void trace_in_plane_rays(const TreeView& view,
-                                                            const RayBatch& rays,
-                                                            const HitBatch& hits, size_t begin,
-                                                            size_t end) {
+__attribute__((noinline)) BSPLAB_KERNEL_FLATTEN void trace_in_plane_rays(
+    const TreeView& view, const RayBatch& rays, const HitBatch& hits, size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i)
         if (hits.prim[i] == kInPlaneLater)
             trace_ray_at<kBoxes, kGeneral, false, false, true, Counters>(view, rays, hits, i);

@@ -26,24 +26,24 @@ namespace {
 
 template <LeafBoxes kBoxes, class Counters>
 BSPLAB_KERNEL_FLATTEN void single_ray_entry(const TreeView& view, const RayBatch& rays,
-                                               const HitBatch& hits, size_t begin, size_t end) {
+                                            const HitBatch& hits, size_t begin, size_t end) {
     trace_single_rays<kBoxes, Counters>(view, rays, hits, begin, end);
 }
 
 BSPLAB_KERNEL_FLATTEN void packet_entry(const TreeView& view, const RayBatch& rays,
-                                           const HitBatch& hits, size_t begin, size_t end) {
+                                        const HitBatch& hits, size_t begin, size_t end) {
     trace_packets(view, rays, hits, begin, end);
 }
 
 template <class Counters>
 BSPLAB_KERNEL_FLATTEN void bvh_entry(const TreeView& view, const RayBatch& rays,
-                                        const HitBatch& hits, size_t begin, size_t end) {
+                                     const HitBatch& hits, size_t begin, size_t end) {
     bvh_trace_rays<Counters>(view, rays, hits, begin, end);
 }
 
 template <class Counters>
 BSPLAB_KERNEL_FLATTEN void bvh_wide_entry(const TreeView& view, const RayBatch& rays,
-                                             const HitBatch& hits, size_t begin, size_t end) {
+                                          const HitBatch& hits, size_t begin, size_t end) {
     bvh_wide_trace_rays<Counters>(view, rays, hits, begin, end);
 }
 
