@@ -71,8 +71,8 @@ constexpr uint64_t kIzeBytesPerRef = 2 * sizeof(Box) + sizeof(Vec3) + sizeof(uin
 class BspBuilder : BuilderBase {
 public:
     BspBuilder(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
-               int threads, MemoryBudget& memory)
-        : BuilderBase(tris, opt, progress, threads, memory) {
+               int threads, MemoryBudget& memory, NodeArena& arena)
+        : BuilderBase(tris, opt, progress, threads, memory, arena) {
         // A general plane's crossing is computed as (d - n.o) / (n.dir) in
         // float, off by a few ulps of the coordinates; two planes with almost
         // equal normals can even swap order along a ray. References are
@@ -84,14 +84,15 @@ public:
         strategy_ = make_strategy(opt);
     }
 
-    // `credit`: the memory budget of the build task (thread) running this node.
-    std::unique_ptr<BuildNode> build(NodeRefs refs, Cell cell, int depth, double budget,
-                                     uint64_t id, TaskCredit& credit) {
+    // `credit` and `nodes`: the memory budget and the node allocator of the
+    // build task (thread) running this node.
+    BuildNode* build(NodeRefs refs, Cell cell, int depth, double budget, uint64_t id,
+                     TaskCredit& credit, NodeArena::Local& nodes) {
         check_stop();
         const size_t n = refs.refs.size();
         const double area = cell.area();
         if (int(n) <= opt_.leaf_size || depth >= opt_.max_depth || !(area > 0))
-            return leaf(refs, area, depth, credit);
+            return leaf(refs, area, depth, credit, nodes);
 
         // Fast quality bins the candidates of big nodes (SweepBins) and
         // sweeps every projection below them.
@@ -146,9 +147,9 @@ public:
         const float leaf_cost = cost_.leaf(n);
         Candidate s = total.best;
         if (!(s.cost < leaf_cost)) s = total.fallback;  // Ize et al.'s retry at a constant cost
-        if (!(s.cost < leaf_cost)) return leaf(refs, area, depth, credit);
+        if (!(s.cost < leaf_cost)) return leaf(refs, area, depth, credit, nodes);
         const double total_refs = double(s.n_left) + double(s.n_right);
-        if (total_refs > budget) return leaf(refs, area, depth, credit);
+        if (total_refs > budget) return leaf(refs, area, depth, credit, nodes);
 
         // The children's references are charged before they are made, their
         // clipped polygons (whose size the split decides) as soon as they are.
@@ -181,7 +182,7 @@ public:
         cell.split(Vec3d(s.dir), double(s.pos), lcell, rcell);
         cell = Cell();
 
-        auto node = std::make_unique<BuildNode>();
+        BuildNode* node = nodes.make<BuildNode>();
         node->area = float(area);
         int axis;
         if (s.kd && is_axis(s.dir, axis)) {
@@ -198,17 +199,19 @@ public:
             auto right_task = std::async(std::launch::async, [&, r = std::move(right),
                                                              c = std::move(rcell)]() mutable {
                 TaskCredit task_credit(memory_);
+                NodeArena::Local task_nodes(arena_);
                 r.charge.move_to(task_credit);
-                return build(std::move(r), std::move(c), depth + 1, rbudget, rid, task_credit);
+                return build(std::move(r), std::move(c), depth + 1, rbudget, rid, task_credit,
+                             task_nodes);
             });
-            node->child[0] =
-                build(std::move(left), std::move(lcell), depth + 1, lbudget, lid, credit);
+            node->child[0] = build(std::move(left), std::move(lcell), depth + 1, lbudget, lid,
+                                   credit, nodes);
             node->child[1] = right_task.get();
         } else {
-            node->child[0] =
-                build(std::move(left), std::move(lcell), depth + 1, lbudget, lid, credit);
-            node->child[1] =
-                build(std::move(right), std::move(rcell), depth + 1, rbudget, rid, credit);
+            node->child[0] = build(std::move(left), std::move(lcell), depth + 1, lbudget, lid,
+                                   credit, nodes);
+            node->child[1] = build(std::move(right), std::move(rcell), depth + 1, rbudget, rid,
+                                   credit, nodes);
         }
         return node;
     }
@@ -240,25 +243,31 @@ private:
         if (!axis) lo -= eps_, hi += eps_;
     }
 
-    std::unique_ptr<BuildNode> leaf(const NodeRefs& nr, double area, int depth,
-                                    TaskCredit& credit) const {
-        Charge(credit, leaf_bytes(opt_, nr.refs.size()), depth, "a leaf").keep();
-        auto node = std::make_unique<BuildNode>();
+    BuildNode* leaf(const NodeRefs& nr, double area, int depth, TaskCredit& credit,
+                    NodeArena::Local& nodes) const {
+        const size_t n = nr.refs.size();
+        Charge(credit, leaf_bytes(opt_, n), depth, "a leaf").keep();
+        BuildNode* node = nodes.make<BuildNode>();
         node->area = float(area);
-        std::vector<uint32_t> order(nr.refs.size());
-        for (size_t i = 0; i < order.size(); ++i) order[i] = uint32_t(i);
+        std::vector<uint32_t> order(n);
+        for (size_t i = 0; i < n; ++i) order[i] = uint32_t(i);
         std::sort(order.begin(), order.end(),
                   [&](uint32_t a, uint32_t b) { return nr.refs[a].tri < nr.refs[b].tri; });
-        for (uint32_t i : order) {
-            node->refs.push_back(nr.refs[i].tri);
-            if (opt_.leaf_boxes != LeafBoxes::Clipped) continue;
+        const bool clipped = opt_.leaf_boxes == LeafBoxes::Clipped;
+        node->count = uint32_t(n);
+        node->refs = nodes.array<uint32_t>(n);
+        if (clipped) node->ref_boxes = nodes.array<Box>(n);
+        for (size_t k = 0; k < n; ++k) {
+            const uint32_t i = order[k];
+            node->refs[k] = nr.refs[i].tri;
+            if (!clipped) continue;
             // The clipped polygon's box, padded like the fattened extents.
             uint32_t c;
             const Vec3* v = verts(nr, nr.refs[i], c);
             Box b;
             for (uint32_t j = 0; j < c; ++j) b.extend(v[j]);
             const Vec3 pad(eps_, eps_, eps_);
-            node->ref_boxes.push_back({b.lo - pad, b.hi + pad});
+            node->ref_boxes[k] = {b.lo - pad, b.hi + pad};
         }
         report_leaf(progress_, depth);
         return node;
@@ -702,16 +711,17 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
 Tree build_bsp_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                     Progress* progress) {
     return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep,
-                                                          MemoryBudget& memory) {
+                                                          MemoryBudget& memory, NodeArena& arena) {
         TaskCredit credit(memory);
+        NodeArena::Local nodes(arena);
         NodeRefs refs;
         refs.charge = Charge(credit, sizeof(Ref) * prep.live.size(), 0, "the references");
         refs.refs.reserve(prep.live.size());
         for (uint32_t i : prep.live) refs.refs.push_back({i, 0, 0});
         BspBuilder builder(tree.triangles, tree.options, progress,
-                           resolve_threads(options.threads), memory);
+                           resolve_threads(options.threads), memory, arena);
         return builder.build(std::move(refs), Cell::from_box(tree.bounds), 0, prep.ref_budget,
-                             options.seed, credit);
+                             options.seed, credit, nodes);
     });
 }
 

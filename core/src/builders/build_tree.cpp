@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <future>
 #include <new>
 #include <stdexcept>
 #include <tuple>
@@ -56,10 +55,10 @@ struct StatsWalker {
     void walk(const BuildNode& n, int depth) {
         const double p = double(n.area) * inv_root_area;
         st.max_depth = std::max(st.max_depth, depth);
-        st.sah_cost += cost.tree_term(p, n.kind, n.refs.size());
+        st.sah_cost += cost.tree_term(p, n.kind, n.count);
         if (n.kind == NodeKind::Leaf) {
             ++st.leaves;
-            const uint64_t c = n.refs.size();
+            const uint64_t c = n.count;
             if (c == 0) ++st.empty_leaves;
             if (c == 1) ++single_leaves;
             st.references += c;
@@ -96,15 +95,15 @@ struct Flattener {
         if (tree.nodes.size() >= kMaxNodes) throw std::length_error("tree exceeds 2^29 nodes");
         const uint32_t index = uint32_t(tree.nodes.size());
         if (n.kind == NodeKind::Leaf) {
-            if (n.refs.size() > kMaxLeafCount) throw std::length_error("a leaf exceeds 2^29 references");
-            const uint32_t count = uint32_t(n.refs.size());
+            if (n.count > kMaxLeafCount) throw std::length_error("a leaf exceeds 2^29 references");
+            const uint32_t count = n.count;
             const bool clipped = tree.options.leaf_boxes == LeafBoxes::Clipped;
-            if (clipped) tree.boxes.insert(tree.boxes.end(), n.ref_boxes.begin(), n.ref_boxes.end());
+            if (clipped) tree.boxes.insert(tree.boxes.end(), n.ref_boxes, n.ref_boxes + count);
             if (count == 1 && !clipped) {
                 tree.nodes.push_back(Node::leaf(n.refs[0], 1));
             } else {
                 tree.nodes.push_back(Node::leaf(uint32_t(tree.refs.size()), count));
-                tree.refs.insert(tree.refs.end(), n.refs.begin(), n.refs.end());
+                tree.refs.insert(tree.refs.end(), n.refs, n.refs + count);
             }
             return index;
         }
@@ -176,25 +175,6 @@ std::vector<std::string> degeneracy_warnings(const BuildStats& st) {
         out.push_back(buf);
     }
     return out;
-}
-
-namespace {
-
-void free_subtree(std::unique_ptr<BuildNode> node, int depth, int spawn) {
-    if (!node) return;
-    if (depth < spawn && node->kind != NodeKind::Leaf) {
-        auto right = std::async(std::launch::async, free_subtree, std::move(node->child[1]),
-                                depth + 1, spawn);
-        free_subtree(std::move(node->child[0]), depth + 1, spawn);
-        right.get();
-    }
-    // Deeper down, the unique_ptrs free the rest recursively.
-}
-
-}  // namespace
-
-void free_build_tree(std::unique_ptr<BuildNode> root, int threads) {
-    free_subtree(std::move(root), 0, spawn_depth(resolve_threads(threads)));
 }
 
 void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {

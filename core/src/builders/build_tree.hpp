@@ -8,19 +8,22 @@
 
 #include "builders/cost_model.hpp"
 #include "builders/memory.hpp"
+#include "builders/node_arena.hpp"
 #include "progress.hpp"
 #include "tree.hpp"
 
 namespace bsp {
 
+// A node of the pointer tree, in the build's NodeArena (as are a leaf's lists).
 struct BuildNode {
     NodeKind kind = NodeKind::Leaf;
     float split = 0;  // kd nodes: the plane's position along the axis
     Plane plane{};  // general nodes: the plane n.x = d
     float area = 0; // surface area of the node's cell (for the SAH cost stat)
-    std::unique_ptr<BuildNode> child[2];
-    std::vector<uint32_t> refs;
-    std::vector<Box> ref_boxes;  // LeafBoxes::Clipped: the clipped box of each reference
+    uint32_t count = 0;  // leaves: references
+    BuildNode* child[2] = {nullptr, nullptr};
+    uint32_t* refs = nullptr;  // leaves: the triangles, ascending
+    Box* ref_boxes = nullptr;  // LeafBoxes::Clipped: the clipped box of each reference
 };
 static_assert(kBuildNodeBytes >= sizeof(BuildNode) + 16, "a build node costs more than charged");
 
@@ -75,14 +78,15 @@ inline int spawn_depth(int threads) {
 constexpr size_t kMinSpawnTriangles = 4096;
 
 // What the node recursion of every builder reads - the triangles, the
-// options and their cost model, progress, threads, the memory budget - and
+// options and their cost model, progress, threads, the memory budget, the
+// node arena - and
 // the two decisions they share: stop (cancelled, over budget) and spawn.
 class BuilderBase {
 public:
     BuilderBase(const std::vector<Triangle>& tris, const BuildOptions& opt, Progress* progress,
-                int threads, MemoryBudget& memory)
+                int threads, MemoryBudget& memory, NodeArena& arena)
         : tris_(tris), opt_(opt), cost_(opt), progress_(progress), threads_(threads),
-          spawn_depth_(spawn_depth(threads)), memory_(memory) {}
+          spawn_depth_(spawn_depth(threads)), memory_(memory), arena_(arena) {}
 
 protected:
     // Throws Cancelled or MemoryLimitExceeded when the build must stop.
@@ -104,6 +108,7 @@ protected:
     int threads_;
     int spawn_depth_;
     MemoryBudget& memory_;
+    NodeArena& arena_;  // the pointer tree's nodes and leaf lists (a Local per task)
 };
 
 // Each child may use the parent's reference budget in proportion to its
@@ -114,14 +119,10 @@ inline void split_budget(double budget, double n_left, double n_right, double& l
     right = budget - left;
 }
 
-// Frees a pointer tree, the subtrees down to spawn_depth(threads) on tasks
-// of their own: a kd tree of a million nodes took 60 ms to free one node
-// after the other, as long as a tenth of its build on two threads.
-void free_build_tree(std::unique_ptr<BuildNode> root, int threads);
-
-// Runs a builder: prepares the tree, lets build_root(tree, prepared, budget)
-// build the pointer tree over the live triangles (not called when there are
-// none), then fills the statistics, flattens, and times the whole build. The
+// Runs a builder: prepares the tree, lets build_root(tree, prepared, budget,
+// arena) build the pointer tree over the live triangles in `arena` (not
+// called when there are none), then fills the statistics, flattens, and
+// times the whole build; the arena frees the pointer tree at once. The
 // memory budget starts with the triangles themselves.
 template <class BuildRoot>
 Tree run_builder(std::vector<Triangle> triangles, const BuildOptions& options,
@@ -134,10 +135,10 @@ Tree run_builder(std::vector<Triangle> triangles, const BuildOptions& options,
     budget.charge(tree.triangles.capacity() * sizeof(Triangle) +
                       prep.live.capacity() * sizeof(uint32_t),
                   -1, "the triangles");
-    std::unique_ptr<BuildNode> root =
-        prep.live.empty() ? std::make_unique<BuildNode>() : build_root(tree, prep, budget);
+    NodeArena arena;
+    const BuildNode* root = prep.live.empty() ? NodeArena::Local(arena).make<BuildNode>()
+                                              : build_root(tree, prep, budget, arena);
     finish(tree, *root, budget);
-    free_build_tree(std::move(root), options.threads);
     tree.stats.peak_bytes = budget.peak();
     tree.stats.build_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -95,8 +95,9 @@ struct TaskScratch {
     EventList new_left[3], new_right[3];  // their clipped events, per axis
     EventStack stack;                     // the nodes' event lists
     EventList sort_in, sort_tmp;          // fast builds: a binned node's events being sorted
+    NodeArena::Local nodes;               // the task's build nodes and leaf lists
 
-    explicit TaskScratch(size_t block_events) : stack(block_events) {}
+    TaskScratch(size_t block_events, NodeArena& arena) : stack(block_events), nodes(arena) {}
 
     // The tag of a new pass (above the two Side bits). After 2^14 passes
     // the tags start over, with every mark cleared.
@@ -116,13 +117,13 @@ public:
     // A build task: the root, or a subtree on a thread of its own. Its
     // lists are copied into the task's own stack first; then `copied` runs
     // (the root's frees the lists it was given).
-    std::unique_ptr<BuildNode> build(const NodeEvents& from, const Box& box, int depth,
-                                     double budget, const std::function<void()>& copied = {}) {
+    BuildNode* build(const NodeEvents& from, const Box& box, int depth, double budget,
+                     const std::function<void()>& copied = {}) {
         TaskCredit credit(memory_);
         const Charge side_charge(credit, tris_.size() * sizeof(uint16_t), depth,
                                  "a build task's triangle marks");
         const size_t events = from.axis[0].size + from.axis[1].size + from.axis[2].size;
-        TaskScratch scratch(size_t(double(events) * kStackBlockShare));
+        TaskScratch scratch(size_t(double(events) * kStackBlockShare), arena_);
         scratch.marks.resize(tris_.size());
         // The first block holds the lists and, for a depth-first build, about
         // as much again for the right children waiting along the path.
@@ -140,11 +141,10 @@ public:
 
     // A fast build's task (the root, or a binned subtree on a thread of its
     // own): its references' charge moves to the task's credit first.
-    std::unique_ptr<BuildNode> build_binned(RefArray refs, const Box& box, int depth,
-                                            double budget) {
+    BuildNode* build_binned(RefArray refs, const Box& box, int depth, double budget) {
         TaskCredit credit(memory_);
         refs.charge.move_to(credit);
-        BinnedTask task{credit, nullptr, Charge(), KdBins()};
+        BinnedTask task{credit, nullptr, Charge(), KdBins(), NodeArena::Local(arena_)};
         return build_binned_node(std::move(refs), box, depth, budget, task);
     }
 
@@ -156,6 +156,7 @@ private:
         std::unique_ptr<TaskScratch> scratch;
         Charge marks;
         KdBins bins;  // the binned nodes', reset from node to node
+        NodeArena::Local nodes;  // the binned nodes (the exact ones are the scratch's)
     };
 
     // Binned nodes of more references than this bin and partition them in
@@ -240,8 +241,8 @@ private:
                                    "the children's references"));
     }
 
-    std::unique_ptr<BuildNode> build_binned_node(RefArray refs, const Box& box, int depth,
-                                                 double budget, BinnedTask& task) {
+    BuildNode* build_binned_node(RefArray refs, const Box& box, int depth, double budget,
+                                 BinnedTask& task) {
         check_stop();
         const size_t n = refs.refs.size();
         if (n < size_t(opt_.fast_min_refs) || int(n) <= opt_.leaf_size || depth >= opt_.max_depth)
@@ -269,7 +270,7 @@ private:
 
         double lbudget, rbudget;
         split_budget(budget, double(left.refs.size()), double(right.refs.size()), lbudget, rbudget);
-        auto node = std::make_unique<BuildNode>();
+        BuildNode* node = task.nodes.make<BuildNode>();
         node->kind = kd_kind(s.axis);
         node->split = s.pos == 0.0f ? 0.0f : s.pos;
         node->area = box.area();
@@ -289,13 +290,13 @@ private:
     // A node below the binned size: its references' clipped boxes become
     // sorted event lists on the task's stack, and the exact sweep builds
     // the subtree from there.
-    std::unique_ptr<BuildNode> build_exact_below(RefArray refs, const Box& box, int depth,
-                                                 double budget, BinnedTask& task) {
+    BuildNode* build_exact_below(RefArray refs, const Box& box, int depth, double budget,
+                                 BinnedTask& task) {
         if (!task.scratch) {
             task.marks = Charge(task.credit, tris_.size() * sizeof(uint16_t), depth,
                                 "a build task's triangle marks");
             const size_t block = size_t(double(kEventsPerRef * opt_.fast_min_refs) * 2 * kStackBlockShare);
-            task.scratch = std::make_unique<TaskScratch>(block);
+            task.scratch = std::make_unique<TaskScratch>(block, arena_);
             task.scratch->marks.resize(tris_.size());
         }
         TaskScratch& scratch = *task.scratch;
@@ -313,7 +314,7 @@ private:
             ev.axis[k] = {room, e.size()};
         }
         refs = RefArray();
-        auto node = build_node(ev, box, depth, budget, scratch, task.credit);
+        BuildNode* node = build_node(ev, box, depth, budget, scratch, task.credit);
         scratch.stack.release(mark);
         return node;
     }
@@ -533,23 +534,29 @@ private:
         }
     }
 
-    std::unique_ptr<BuildNode> make_leaf(const NodeEvents& ev, const Box& box, int depth,
-                                         TaskCredit& credit) const {
+    BuildNode* make_leaf(const NodeEvents& ev, const Box& box, int depth, TaskScratch& scratch,
+                         TaskCredit& credit) const {
         Charge(credit, leaf_bytes(opt_, ev.count), depth, "a leaf").keep();
-        auto node = std::make_unique<BuildNode>();
+        BuildNode* node = scratch.nodes.make<BuildNode>();
         node->area = box.area();
-        node->refs.reserve(ev.count);
+        // One start or planar event per triangle along every axis.
+        size_t count = 0;
+        for (const Event& e : ev.axis[0]) count += e.type() != kEnd;
+        uint32_t* refs = scratch.nodes.array<uint32_t>(count);
+        uint32_t* end = refs;
         for (const Event& e : ev.axis[0])
-            if (e.type() != kEnd) node->refs.push_back(e.tri());
-        std::sort(node->refs.begin(), node->refs.end());
+            if (e.type() != kEnd) *end++ = e.tri();
+        std::sort(refs, end);
+        node->refs = refs;
+        node->count = uint32_t(end - refs);
         if (opt_.leaf_boxes == LeafBoxes::Clipped) {
             // The events hold each triangle's bounds clipped to this cell
             // (padded outwards by the clipper): gather them per reference.
-            node->ref_boxes.assign(node->refs.size(), Box());
+            node->ref_boxes = scratch.nodes.array<Box>(node->count);
+            std::fill(node->ref_boxes, node->ref_boxes + node->count, Box());
             for (int k = 0; k < 3; ++k) {
                 for (const Event& e : ev.axis[k]) {
-                    const size_t i = size_t(std::lower_bound(node->refs.begin(), node->refs.end(),
-                                                             e.tri()) - node->refs.begin());
+                    const size_t i = size_t(std::lower_bound(refs, end, e.tri()) - refs);
                     Box& b = node->ref_boxes[i];
                     if (e.type() != kEnd) b.lo[k] = e.pos;
                     if (e.type() != kStart) b.hi[k] = e.pos;
@@ -560,16 +567,16 @@ private:
         return node;
     }
 
-    std::unique_ptr<BuildNode> build_node(NodeEvents ev, const Box& box, int depth, double budget,
-                                          TaskScratch& scratch, TaskCredit& credit) {
+    BuildNode* build_node(NodeEvents ev, const Box& box, int depth, double budget,
+                          TaskScratch& scratch, TaskCredit& credit) {
         check_stop();
         const float leaf_cost = cost_.leaf(ev.count);
         if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth)
-            return make_leaf(ev, box, depth, credit);
+            return make_leaf(ev, box, depth, scratch, credit);
         const Split s = find_split(ev, box);
-        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, box, depth, credit);
+        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, box, depth, scratch, credit);
         const double refs = double(s.n_left) + double(s.n_right);
-        if (refs > budget) return make_leaf(ev, box, depth, credit);
+        if (refs > budget) return make_leaf(ev, box, depth, scratch, credit);
 
         // The straddling triangles' new events (freed after the split) and
         // this node (kept); the children's lists are the stack's.
@@ -590,7 +597,7 @@ private:
         double lbudget, rbudget;
         split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
 
-        auto node = std::make_unique<BuildNode>();
+        BuildNode* node = scratch.nodes.make<BuildNode>();
         node->kind = kd_kind(s.axis);
         // -0 and +0 are the same plane, and the sweep may meet either first
         // among equal events (their order is the sort's): store one of them.
@@ -614,9 +621,9 @@ private:
 };
 
 // A fast build's root: every live triangle's bounds as a reference.
-std::unique_ptr<BuildNode> build_binned_root(Tree& tree, const Prepared& prep,
-                                             MemoryBudget& memory, TaskCredit& credit,
-                                             int threads, Progress* progress) {
+BuildNode* build_binned_root(Tree& tree, const Prepared& prep, MemoryBudget& memory,
+                             NodeArena& arena, TaskCredit& credit, int threads,
+                             Progress* progress) {
     const size_t n = prep.live.size();
     RefArray root;
     root.charge = Charge(credit, sizeof(KdRef) * n, 0, "the root's references");
@@ -627,7 +634,7 @@ std::unique_ptr<BuildNode> build_binned_root(Tree& tree, const Prepared& prep,
             root.refs[i] = {tree.triangles[t].bounds(), t};
         }
     });
-    KdBuilder builder(tree.triangles, tree.options, progress, threads, memory);
+    KdBuilder builder(tree.triangles, tree.options, progress, threads, memory, arena);
     return builder.build_binned(std::move(root), tree.bounds, 0, prep.ref_budget);
 }
 
@@ -636,12 +643,12 @@ std::unique_ptr<BuildNode> build_binned_root(Tree& tree, const Prepared& prep,
 Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
                    Progress* progress) {
     return run_builder(std::move(triangles), options, [&](Tree& tree, const Prepared& prep,
-                                                          MemoryBudget& memory) {
+                                                          MemoryBudget& memory, NodeArena& arena) {
         TaskCredit credit(memory);
         const size_t n = prep.live.size();
         const int threads = resolve_threads(options.threads);
         if (options.build_quality == BuildQuality::Fast && n >= size_t(options.fast_min_refs))
-            return build_binned_root(tree, prep, memory, credit, threads, progress);
+            return build_binned_root(tree, prep, memory, arena, credit, threads, progress);
         // The lists and, while they are sorted, as much again.
         Charge lists(credit, kEventBytesPerRef * n, 0, "the event lists");
         Charge sorting(credit, kEventBytesPerRef * n, 0, "sorting the event lists");
@@ -662,7 +669,7 @@ Tree build_kd_tree(std::vector<Triangle> triangles, const BuildOptions& options,
         NodeEvents root;
         root.count = uint32_t(n);
         for (int k = 0; k < 3; ++k) root.axis[k] = {axis[k].data(), axis[k].size()};
-        KdBuilder builder(tree.triangles, tree.options, progress, threads, memory);
+        KdBuilder builder(tree.triangles, tree.options, progress, threads, memory, arena);
         // The root task copies the lists into its stack; these go at once.
         return builder.build(root, tree.bounds, 0, prep.ref_budget, [&] {
             for (EventList& e : axis) EventList().swap(e);

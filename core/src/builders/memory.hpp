@@ -233,7 +233,8 @@ private:
     uint64_t bytes_ = 0;
 };
 
-// What one pointer-tree node costs: the object and the allocator's header.
+// What one pointer-tree node is charged: more than the object takes in the
+// node arena (build_tree.hpp asserts it), which also covers a block's slack.
 constexpr uint64_t kBuildNodeBytes = 128;
 
 }  // namespace bsp
