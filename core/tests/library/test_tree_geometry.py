@@ -116,7 +116,8 @@ class CellGeometry:
         n = normal / np.where(self.valid, length, 1.0)[:, None]
         vertex_sum = per_face(v)
         d = (n * vertex_sum).sum(1) / np.maximum(counts, 1)
-        centre = per_cell(vertex_sum) / np.maximum(np.bincount(cell_of, counts, n_cells), 1)[:, None]
+        in_cell = np.maximum(np.bincount(cell_of, counts, n_cells), 1)
+        centre = per_cell(vertex_sum) / in_cell[:, None]
         flip = (n * centre[cell_of]).sum(1) > d
         n[flip], d[flip] = -n[flip], -d[flip]
         self.n, self.d = n, d
@@ -269,7 +270,8 @@ def test_cells_of_a_level_tile_the_root_box(scene, method, max_depth):
 def test_leaf_cells_of_a_subtree_tile_its_cell():
     tree = tree_of("fan", "rbsp+kd")
     level = CellGeometry(tree.leaf_cells(max_depth=4))
-    root = next(int(n) for n in level.node if n in set(np.flatnonzero(decoded_nodes(tree)[0] != LEAF)))
+    interior = set(np.flatnonzero(decoded_nodes(tree)[0] != LEAF))
+    root = next(int(n) for n in level.node if n in interior)
     sub = tree.leaf_cells(root=root)
     total = CellGeometry(sub).volume.sum()
     assert total == pytest.approx(level.volume_of(root), rel=1e-6)
