@@ -65,7 +65,10 @@ def test_ray_counts_that_leave_the_last_packet_part_empty(count):
 def test_packets_on_a_scaled_tree(method):
     # Rays go into the tree's scaled space and distances come back, as on
     # the single-ray path; a tmax just past a hit checks the rounding back.
-    tris = scenes.generate("spheres") * np.float32(3e5)
+    # The fan (9k triangles, general nodes on most walks) rather than the
+    # spheres (48k): the same scaled path, builds 8-40 times faster (17 s ->
+    # ~2 s a method under ASan + UBSan).
+    tris = scenes.generate("fan") * np.float32(3e5)
     tree = bsplab.build(tris, method=method)
     assert tree.stats["scale"] != 1.0
     o, d, tmin, tmax = family_rays(tris, 300, seed=4)
