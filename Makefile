@@ -54,8 +54,8 @@ test-core: core
 # The core built with AddressSanitizer + UndefinedBehaviorSanitizer in folders
 # of its own (core/build/asan, out/sanitize/asan; .venv's install is left
 # alone), running the fast part of the files that drive the C++ (conftest.py); any
-# report fails it. About 14 minutes with the compile (278 s + 9 min on the
-# 2-core machine, 2026-12-04). docs/testing.md.
+# report fails it. About 11 minutes with the compile (264 s + 6.6 min on the
+# 2-core machine, 2026-12-05). docs/testing.md.
 test-sanitize: venv
 	@echo
 	@echo "=== Core under AddressSanitizer + UndefinedBehaviorSanitizer (fast part: pytest -m 'not slow') ==="
