@@ -249,14 +249,17 @@ private:
         Charge(credit, leaf_bytes(opt_, n), depth, "a leaf").keep();
         BuildNode* node = nodes.make<BuildNode>();
         node->area = float(area);
-        std::vector<uint32_t> order(n);
-        for (size_t i = 0; i < n; ++i) order[i] = uint32_t(i);
-        std::sort(order.begin(), order.end(),
-                  [&](uint32_t a, uint32_t b) { return nr.refs[a].tri < nr.refs[b].tri; });
         const bool clipped = opt_.leaf_boxes == LeafBoxes::Clipped;
         node->count = uint32_t(n);
         node->refs = nodes.array<uint32_t>(n);
         if (clipped) node->ref_boxes = nodes.array<Box>(n);
+        // The references in triangle order: their indices sorted in the
+        // leaf's own list, each then replaced by its triangle (a triangle
+        // has one reference per node, so the order has no ties).
+        uint32_t* order = node->refs;
+        for (size_t i = 0; i < n; ++i) order[i] = uint32_t(i);
+        std::sort(order, order + n,
+                  [&](uint32_t a, uint32_t b) { return nr.refs[a].tri < nr.refs[b].tri; });
         for (size_t k = 0; k < n; ++k) {
             const uint32_t i = order[k];
             node->refs[k] = nr.refs[i].tri;

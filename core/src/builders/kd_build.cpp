@@ -95,9 +95,10 @@ struct TaskScratch {
     EventList new_left[3], new_right[3];  // their clipped events, per axis
     EventStack stack;                     // the nodes' event lists
     EventList sort_in, sort_tmp;          // fast builds: a binned node's events being sorted
-    NodeArena::Local nodes;               // the task's build nodes and leaf lists
+    NodeArena::Local& nodes;              // the task's build nodes and leaf lists
 
-    TaskScratch(size_t block_events, NodeArena& arena) : stack(block_events), nodes(arena) {}
+    TaskScratch(size_t block_events, NodeArena::Local& task_nodes)
+        : stack(block_events), nodes(task_nodes) {}
 
     // The tag of a new pass (above the two Side bits). After 2^14 passes
     // the tags start over, with every mark cleared.
@@ -123,7 +124,8 @@ public:
         const Charge side_charge(credit, tris_.size() * sizeof(uint16_t), depth,
                                  "a build task's triangle marks");
         const size_t events = from.axis[0].size + from.axis[1].size + from.axis[2].size;
-        TaskScratch scratch(size_t(double(events) * kStackBlockShare), arena_);
+        NodeArena::Local nodes(arena_);
+        TaskScratch scratch(size_t(double(events) * kStackBlockShare), nodes);
         scratch.marks.resize(tris_.size());
         // The first block holds the lists and, for a depth-first build, about
         // as much again for the right children waiting along the path.
@@ -156,7 +158,7 @@ private:
         std::unique_ptr<TaskScratch> scratch;
         Charge marks;
         KdBins bins;  // the binned nodes', reset from node to node
-        NodeArena::Local nodes;  // the binned nodes (the exact ones are the scratch's)
+        NodeArena::Local nodes;  // every node of the task, binned or exact (the scratch's too)
     };
 
     // Binned nodes of more references than this bin and partition them in
@@ -296,7 +298,7 @@ private:
             task.marks = Charge(task.credit, tris_.size() * sizeof(uint16_t), depth,
                                 "a build task's triangle marks");
             const size_t block = size_t(double(kEventsPerRef * opt_.fast_min_refs) * 2 * kStackBlockShare);
-            task.scratch = std::make_unique<TaskScratch>(block, arena_);
+            task.scratch = std::make_unique<TaskScratch>(block, task.nodes);
             task.scratch->marks.resize(tris_.size());
         }
         TaskScratch& scratch = *task.scratch;
