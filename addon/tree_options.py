@@ -51,12 +51,21 @@ def _limits(spec):
     return out
 
 
+def _first_method_defaults():
+    """The own defaults of the method a new scene starts at (the method
+    enum's first item, the registry's first method: kd)."""
+    first = next(iter(backend.methods().values()), {})
+    return first.get("defaults", {})
+
+
 def option_property(spec):
     """The bpy property of one build option: its name, help text, default
     and limits all from the registry (`bsplab.method_table.OPTIONS`), but
-    the defaults of PANEL_DEFAULTS."""
+    the defaults of PANEL_DEFAULTS, then those of the method a new scene
+    starts at (kd's fast bins)."""
     common = {"name": spec["label"], "description": spec["help"]}
-    default = PANEL_DEFAULTS.get(spec["name"], spec["default"])
+    default = PANEL_DEFAULTS.get(spec["name"],
+                                 _first_method_defaults().get(spec["name"], spec["default"]))
     if spec["type"] == "enum":
         items = tuple((c["name"], c["label"], c["help"]) for c in spec["choices"])
         return EnumProperty(items=items, default=default, **common)
@@ -95,10 +104,19 @@ def method_enum_items(_self, _context):
 
 def method_changed(self, _context):
     """Load the new method's own defaults (K differs between methods). An
-    option of PANEL_DEFAULTS keeps its value (the panel's default, or what
-    the user chose) unless the method has a default of its own for it."""
-    info = backend.methods().get(self.method, {})
-    for name, value in info.get("defaults", {}).items():
+    option some other method has a default of its own for (the BVH's
+    intersect_cost, kd's fast_bins) goes back to the registry's default
+    when the new method has none: kd's 1024 bins would make a sweep's fast
+    build price 32 times the planes. An option of PANEL_DEFAULTS keeps its
+    value (the panel's default, or what the user chose) unless the method
+    has a default of its own for it."""
+    methods = backend.methods()
+    own = dict(methods.get(self.method, {}).get("defaults", {}))
+    for other in methods.values():
+        for name in other.get("defaults", {}):
+            if name not in own and name not in PANEL_DEFAULTS and name in OPTION_SCHEMA:
+                own[name] = OPTION_SCHEMA[name]["default"]
+    for name, value in own.items():
         if name in PANEL_DEFAULTS and value == OPTION_SCHEMA.get(name, {}).get("default"):
             continue
         if name in BUILD_OPTIONS and hasattr(self, name):

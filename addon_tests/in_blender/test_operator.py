@@ -35,7 +35,13 @@ def core_render_of_scene(core, scene, width, height, mode="shaded"):
         sensor_width=data.sensor_width, sensor_height=data.sensor_height,
         sensor_fit=data.sensor_fit, shift_x=data.shift_x, shift_y=data.shift_y,
         pixel_aspect=scene.render.pixel_aspect_x / scene.render.pixel_aspect_y)
-    tree = core.build(triangles, method=scene.bsplab.method)
+    # The panel's own default build quality (PANEL_DEFAULTS: fast), which
+    # changes small trees too (the minimum gain); every other option at the
+    # core's default.
+    method = scene.bsplab.method
+    options = ({"build_quality": scene.bsplab.build_quality}
+               if "build_quality" in core.methods()[method]["params"] else {})
+    tree = core.build(triangles, method=method, **options)
     image, _ = core.render(tree, camera, width, height, mode=mode)
     return triangles, image
 
@@ -253,6 +259,28 @@ def test_method_change_loads_its_defaults(addon, core, empty_scene):
             if hasattr(settings, name):
                 expected = panel.get(name, value)
                 assert getattr(settings, name) == pytest.approx(expected), (method, name)
+
+
+def test_method_change_drops_the_last_methods_own_defaults(addon, core, empty_scene):
+    """An option the previous method had its own default for goes back to
+    the registry's default when the new method has none: kd's fast bins
+    must not follow the panel to a sweep, nor the BVH's test cost to kd."""
+    settings = empty_scene.bsplab
+    schema = addon.tree_options.OPTION_SCHEMA
+    kd = core.methods()["kd"]["defaults"]
+    assert kd["fast_bins"] != schema["fast_bins"]["default"]
+    # A new scene starts at kd, with kd's own defaults.
+    assert settings.method == "kd" and settings.fast_bins == kd["fast_bins"]
+    settings.method = "kd"
+    assert settings.fast_bins == kd["fast_bins"]
+    settings.method = "bsp_wn+kd"
+    assert settings.fast_bins == schema["fast_bins"]["default"]
+    settings.method = "bvh"
+    assert settings.intersect_cost == pytest.approx(
+        core.methods()["bvh"]["defaults"]["intersect_cost"])
+    settings.method = "kd"
+    assert settings.intersect_cost == pytest.approx(schema["intersect_cost"]["default"])
+    assert settings.fast_bins == kd["fast_bins"]
 
 
 def test_heat_preview_without_the_maximum_keeps_the_render(addon, core, test_scene):

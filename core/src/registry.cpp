@@ -156,6 +156,11 @@ std::vector<OptionSpec> make_option_specs() {
          .soft_max = 1 << 20, .label = "Fast Binned Size", .short_label = "Binned From",
          .help = "Fast builds: nodes with at least this many references are binned, smaller "
                  "ones swept exactly"},
+        {NUMBER_FIELD(fast_min_gain), .type = T::Float, .group = "bsp",
+         .default_value = real(kFastMinGain), .min = whole(0), .max = real(0.9),
+         .label = "Fast Split Gain", .short_label = "Min Gain",
+         .help = "Fast builds: a node splits only if that saves at least this share of its "
+                 "leaf's cost (0: wherever it saves anything, as exact builds do)"},
         // The BSP family. K's limits here are the widest; a method narrows
         // them (MethodSpec::min_k, max_k).
         {NUMBER_FIELD(k), .type = T::Int, .group = "bsp", .default_value = whole(6),
@@ -226,7 +231,7 @@ Options operator+(Options a, const Options& b) {
 }
 
 // The build quality's options: kd's and the sweep builder's, not the BVH's.
-const Options kQuality = {"build_quality", "fast_bins", "fast_min_refs"};
+const Options kQuality = {"build_quality", "fast_bins", "fast_min_refs", "fast_min_gain"};
 const Options kSweepOptions = Options{"k", "seed"} + kQuality;
 const Options kKdCosts = {"alpha", "general_cost"};
 
@@ -255,7 +260,9 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"kd", "kd (SAH)",
                  "Axis-aligned kd-tree, SAH with perfect splits, O(N log N) build "
                  "(Wald & Havran 2006).",
-                 kKdBuilder, "axes", false, false, kQuality});
+                 kKdBuilder, "axes", false, false, kQuality,
+                 // Fine bins cost kd nothing (tree.hpp, kKdFastBins).
+                 {{"fast_bins", whole(kKdFastBins)}}});
     m.push_back({"rbsp", "RBSP",
                  "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
                  "else the three axes plus K - 3 golden-spiral points) at every node.",

@@ -9,7 +9,8 @@ Run: .venv/bin/python core/tools/kd_fast_experiment.py --scenes bunny sibenik \\
         --rounds 3 --threads 2 -- default fast_bins=16,fast_min_refs=1024
 
 Option sets are `default` (the registry's fast defaults) or comma-separated
-name=value pairs added to build_quality="fast".
+name=value pairs added to build_quality="fast" (e.g. fast_bins=32,
+fast_min_gain=0.1).
 
 With --trace, times tracing instead: the exact tree and each fast tree trace
 the same rays (256 x 256 primary rays in tiles, 65,536 random rays; one
@@ -28,7 +29,9 @@ SHARED = ["bunny", "conference", "dragon_res2", "lost_empire", "sibenik",
 def option_set(text: str) -> dict:
     if text == "default":
         return {}
-    return {name: int(value) for name, value in (p.split("=") for p in text.split(","))}
+    def number(value: str):
+        return int(value) if value.lstrip("-").isdigit() else float(value)
+    return {name: number(value) for name, value in (p.split("=") for p in text.split(","))}
 
 
 def trace_rows(name: str, tris, sets: list[str], rounds: int) -> None:

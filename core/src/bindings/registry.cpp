@@ -124,7 +124,8 @@ void bind_registry(nb::module_& m) {
         .def_rw("leaf_boxes", &BuildOptions::leaf_boxes)
         .def_rw("build_quality", &BuildOptions::build_quality)
         .def_rw("fast_bins", &BuildOptions::fast_bins)
-        .def_rw("fast_min_refs", &BuildOptions::fast_min_refs);
+        .def_rw("fast_min_refs", &BuildOptions::fast_min_refs)
+        .def_rw("fast_min_gain", &BuildOptions::fast_min_gain);
 
     m.def("registry", &registry, "The methods, options and strategies of registry.hpp.");
     m.def(

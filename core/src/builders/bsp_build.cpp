@@ -144,10 +144,10 @@ public:
         for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
         if (ize) merge(total, ize_result);
 
-        const float leaf_cost = cost_.leaf(n);
+        const float limit = cost_.split_limit(n);
         Candidate s = total.best;
-        if (!(s.cost < leaf_cost)) s = total.fallback;  // Ize et al.'s retry at a constant cost
-        if (!(s.cost < leaf_cost)) return leaf(refs, area, depth, credit, nodes);
+        if (!(s.cost < limit)) s = total.fallback;  // Ize et al.'s retry at a constant cost
+        if (!(s.cost < limit)) return leaf(refs, area, depth, credit, nodes);
         const double total_refs = double(s.n_left) + double(s.n_right);
         if (total_refs > budget) return leaf(refs, area, depth, credit, nodes);
 

@@ -25,10 +25,24 @@ public:
           empty_factor_(1.0f - opt.empty_bonus),
           kd_nodes_(opt.kd_nodes),
           alpha_(opt.alpha),
-          general_fallback_(opt.general_cost) {}
+          general_fallback_(opt.general_cost),
+          min_saving_per_ref_(opt.build_quality == BuildQuality::Fast
+                                  ? opt.fast_min_gain * opt.intersect_cost
+                                  : 0.0f) {}
 
     // A leaf tests every triangle it holds: K_i n.
     float leaf(size_t n) const { return test_ * float(n); }
+
+    // What a split of a node of n references must cost less than. An exact
+    // build splits wherever that beats the leaf. A fast one splits only
+    // where it saves fast_min_gain of the leaf's cost, counting at most
+    // kFastGainRefs references: deep nodes that save a few percent each are
+    // most of an exact tree's nodes and little of its cost, while a big
+    // node's small relative saving can still be many tests (tree.hpp,
+    // kFastMinGain). Minus 0 for exact builds, so their trees are unchanged.
+    float split_limit(size_t n) const {
+        return leaf(n) - min_saving_per_ref_ * float(std::min(n, kFastGainRefs));
+    }
 
     // The step cost of a kd node: K_d, one subtraction and one multiplication.
     float kd_step() const { return kd_step_; }
@@ -96,6 +110,7 @@ private:
     bool kd_nodes_;           // ^Kd: kd and general steps are priced apart
     float alpha_;             // ^Kd: a general step's share of the tests it saves
     float general_fallback_;  // ^Kd: the constant K_d,BSP
+    float min_saving_per_ref_;  // fast builds: K_i fast_min_gain (0: exact)
 };
 
 }  // namespace bsp

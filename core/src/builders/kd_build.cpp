@@ -572,11 +572,11 @@ private:
     BuildNode* build_node(NodeEvents ev, const Box& box, int depth, double budget,
                           TaskScratch& scratch, TaskCredit& credit) {
         check_stop();
-        const float leaf_cost = cost_.leaf(ev.count);
         if (int(ev.count) <= opt_.leaf_size || depth >= opt_.max_depth)
             return make_leaf(ev, box, depth, scratch, credit);
         const Split s = find_split(ev, box);
-        if (s.axis < 0 || !(s.cost < leaf_cost)) return make_leaf(ev, box, depth, scratch, credit);
+        if (s.axis < 0 || !(s.cost < cost_.split_limit(ev.count)))
+            return make_leaf(ev, box, depth, scratch, credit);
         const double refs = double(s.n_left) + double(s.n_right);
         if (refs > budget) return make_leaf(ev, box, depth, scratch, credit);
 

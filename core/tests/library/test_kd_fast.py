@@ -1,6 +1,7 @@
 """The kd builder's fast builds (build_quality="fast", issue 25): nodes of at
 least fast_min_refs references choose among fast_bins binned planes per
-axis, smaller ones sweep exactly. The trees differ from the exact ones but
+axis, smaller ones sweep exactly, and a split is made only where it saves
+fast_min_gain of the leaf's cost. The trees differ from the exact ones but
 must hit what Embree hits, be the same whatever the thread count, cost
 little more (SAH), and keep progress, cancellation and the memory limit.
 
@@ -31,9 +32,30 @@ def test_fast_trees_differ_from_exact_ones(fan):
     fast = bsplab.build(fan, "kd", **LOW)
     assert fast.stats["build_quality"] == "fast"
     assert exact.node_bytes() != fast.node_bytes()
-    # Below fast_min_refs nothing is binned: the exact tree.
-    whole = bsplab.build(fan, "kd", build_quality="fast", fast_min_refs=len(fan) + 1)
+    # Below fast_min_refs nothing is binned, and with no minimum gain every
+    # split the exact build makes is made: the exact tree.
+    whole = bsplab.build(fan, "kd", build_quality="fast", fast_min_refs=len(fan) + 1,
+                         fast_min_gain=0)
     assert whole.node_bytes() == exact.node_bytes()
+    # The default minimum gain leaves out splits the exact build makes.
+    gain = bsplab.build(fan, "kd", build_quality="fast", fast_min_refs=len(fan) + 1)
+    assert gain.stats["interior_nodes"] < exact.stats["interior_nodes"]
+
+
+@pytest.mark.parametrize("method, options", [("kd", {}), ("bsp_wn+kd", {"k": 8})])
+def test_a_higher_minimum_gain_makes_fewer_nodes(method, options):
+    # Each split the higher minimum refuses is a leaf; the SAH cost moves
+    # by little at the default (the shared meshes: docs/build_quality.md).
+    room = scenes.generate("room")
+    exact = bsplab.build(room, method, **options).stats
+    nodes = []
+    for gain in (0.0, 0.05, 0.3):
+        s = bsplab.build(room, method, build_quality="fast", fast_min_gain=gain, **options).stats
+        nodes.append(s["interior_nodes"])
+        assert s["option_fast_min_gain"] == pytest.approx(gain)
+        if gain == 0.05:
+            assert abs(s["sah_cost"] / exact["sah_cost"] - 1) < 0.03, (method, s["sah_cost"])
+    assert nodes[0] > nodes[1] > nodes[2], nodes
 
 
 _rays: dict = {}
@@ -76,12 +98,17 @@ def test_fast_sah_is_close_to_exact():
     tris = scenes.generate("spheres")
     exact = bsplab.build(tris, "kd").stats["sah_cost"]
     fast = bsplab.build(tris, "kd", build_quality="fast", fast_min_refs=1024).stats["sah_cost"]
-    assert exact <= fast * 1.001 and fast < 1.03 * exact, (exact, fast)
+    # The greedy exact tree is not the cheapest one, and leaving out its
+    # splits that save little can lower the cost: within 3 % either way.
+    assert fast != exact and abs(fast / exact - 1) < 0.03, (exact, fast)
 
 
 @pytest.mark.parametrize("name, value", [("fast_bins", 1), ("fast_bins", 5000),
                                          ("fast_bins", 2.5), ("fast_min_refs", 1),
-                                         ("fast_min_refs", -4), ("fast_min_refs", 2**31)])
+                                         ("fast_min_refs", -4), ("fast_min_refs", 2**31),
+                                         ("fast_min_gain", -0.1), ("fast_min_gain", 0.95),
+                                         ("fast_min_gain", float("nan")),
+                                         ("fast_min_gain", "high")])
 def test_bad_fast_options_are_refused(fan, name, value):
     with pytest.raises((ValueError, TypeError)):
         bsplab.build(fan, "kd", build_quality="fast", **{name: value})
