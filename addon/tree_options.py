@@ -51,13 +51,6 @@ def _limits(spec):
     return out
 
 
-def _first_method_defaults():
-    """The own defaults of the method a new scene starts at (the method
-    enum's first item, the registry's first method: kd)."""
-    first = next(iter(backend.methods().values()), {})
-    return first.get("defaults", {})
-
-
 def option_property(spec):
     """The bpy property of one build option: its name, help text, default
     and limits all from the registry (`bsplab.method_table.OPTIONS`), but
@@ -65,7 +58,7 @@ def option_property(spec):
     starts at (kd's fast bins)."""
     common = {"name": spec["label"], "description": spec["help"]}
     default = PANEL_DEFAULTS.get(spec["name"],
-                                 _first_method_defaults().get(spec["name"], spec["default"]))
+                                 FIRST_METHOD_DEFAULTS.get(spec["name"], spec["default"]))
     if spec["type"] == "enum":
         items = tuple((c["name"], c["label"], c["help"]) for c in spec["choices"])
         return EnumProperty(items=items, default=default, **common)
@@ -78,6 +71,9 @@ def option_property(spec):
 # bsplab is missing (nothing can be built then). A method's `params` in
 # `bsplab.methods()` says which apply to it.
 OPTION_SCHEMA = backend.option_schema()
+# The own defaults of the method a new scene starts at (the method enum's
+# first item, the registry's first method: kd), read once.
+FIRST_METHOD_DEFAULTS = next(iter(backend.methods().values()), {}).get("defaults", {})
 BUILD_OPTIONS = _panel_order(OPTION_SCHEMA)
 # The build options but the thread count, which changes no tree: the panel
 # draws A's threads with the render settings, and B is built with A's.

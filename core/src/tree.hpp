@@ -191,7 +191,7 @@ struct BuildOptions {
     BuildQuality build_quality = BuildQuality::Exact;
     int fast_bins = kFastBins;          // bins per direction of a binned node
     int fast_min_refs = kFastMinRefs;   // nodes with at least this many references are binned
-    float fast_min_gain = float(kFastMinGain);  // a split must cost at most (1 - this) x the leaf
+    float fast_min_gain = float(kFastMinGain);  // share of the leaf (<= kFastGainRefs refs) a split must save
 };
 
 struct LevelStats {
