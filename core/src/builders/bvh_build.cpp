@@ -19,6 +19,16 @@ static_assert(BuildOptions{}.bins == kBvhBins, "one default for the BVH's bins")
 
 namespace {
 
+// Subtrees go to tasks of their own down to this depth: a few more tasks than
+// cores, for balance. (A BVH splits by object, into two sizeable parts near
+// the root; the kd and BSP builders, whose SAH peels off thin slabs, spawn by
+// size instead: BuilderBase::spawns.)
+int spawn_depth(int threads) {
+    int depth = 0;
+    while ((1 << depth) < threads) ++depth;
+    return threads > 1 ? depth + 2 : 0;
+}
+
 // A primitive as the builder moves it around: its box, centroid and id.
 struct PrimRef {
     Box box;

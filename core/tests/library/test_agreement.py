@@ -126,9 +126,10 @@ def test_results_identical_across_thread_counts(scene_id):
 # The determinism check builds on the ground and first spheres of
 # gen:spheres (20,000 of its 48,480 triangles; 2-3 times faster builds).
 # It takes every parallel path of the builders that the whole scene takes
-# (core/src/builders): a node of more than 4096 triangles (kMinSpawnTriangles,
-# kBvhMinSpawn) builds its right subtree on a task of its own down to depth 3
-# at 2 threads - the root's ~10k and ~5k children still do - and a BSP node
+# (core/src/builders): a kd or BSP node whose children both hold more than
+# 4096 triangles (kMinSpawnTriangles) builds its right subtree on a task of
+# its own - the root's ~10k and ~5k children still do - as does a BVH node of
+# more than 4096 (kBvhMinSpawn) down to depth 3 at 2 threads, and a BSP node
 # of more than 8192 (kParallelDirections) sweeps its directions in parallel
 # (the root and its children). The whole scene took no other: kd's parallel
 # axes and the BVH's parallel binning need more than 65,536 triangles
