@@ -54,8 +54,8 @@ def _limits(spec):
 def option_property(spec):
     """The bpy property of one build option: its name, help text, default
     and limits all from the registry (`bsplab.method_table.OPTIONS`), but
-    the defaults of PANEL_DEFAULTS, then those of the method a new scene
-    starts at (kd's fast bins)."""
+    the defaults of PANEL_DEFAULTS, then the own defaults of the method a
+    new scene starts at."""
     common = {"name": spec["label"], "description": spec["help"]}
     default = PANEL_DEFAULTS.get(spec["name"],
                                  FIRST_METHOD_DEFAULTS.get(spec["name"], spec["default"]))
@@ -101,9 +101,9 @@ def method_enum_items(_self, _context):
 def method_changed(self, _context):
     """Load the new method's own defaults (K differs between methods). An
     option some other method has a default of its own for (the BVH's
-    intersect_cost, kd's fast_bins) goes back to the registry's default
-    when the new method has none: kd's 1024 bins would make a sweep's fast
-    build price 32 times the planes. An option of PANEL_DEFAULTS keeps its
+    intersect_cost) goes back to the registry's default when the new method
+    has none: the BVH's cheaper tests would make a kd tree's leaves grow.
+    An option of PANEL_DEFAULTS keeps its
     value (the panel's default, or what the user chose) unless the method
     has a default of its own for it."""
     methods = backend.methods()

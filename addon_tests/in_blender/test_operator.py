@@ -263,24 +263,18 @@ def test_method_change_loads_its_defaults(addon, core, empty_scene):
 
 def test_method_change_drops_the_last_methods_own_defaults(addon, core, empty_scene):
     """An option the previous method had its own default for goes back to
-    the registry's default when the new method has none: kd's fast bins
-    must not follow the panel to a sweep, nor the BVH's test cost to kd."""
+    the registry's default when the new method has none: the BVH's test
+    cost must not follow the panel to kd or to a sweep."""
     settings = empty_scene.bsplab
     schema = addon.tree_options.OPTION_SCHEMA
-    kd = core.methods()["kd"]["defaults"]
-    assert kd["fast_bins"] != schema["fast_bins"]["default"]
-    # A new scene starts at kd, with kd's own defaults.
-    assert settings.method == "kd" and settings.fast_bins == kd["fast_bins"]
-    settings.method = "kd"
-    assert settings.fast_bins == kd["fast_bins"]
-    settings.method = "bsp_wn+kd"
-    assert settings.fast_bins == schema["fast_bins"]["default"]
-    settings.method = "bvh"
-    assert settings.intersect_cost == pytest.approx(
-        core.methods()["bvh"]["defaults"]["intersect_cost"])
-    settings.method = "kd"
-    assert settings.intersect_cost == pytest.approx(schema["intersect_cost"]["default"])
-    assert settings.fast_bins == kd["fast_bins"]
+    bvh = core.methods()["bvh"]["defaults"]
+    registry = schema["intersect_cost"]["default"]
+    assert bvh["intersect_cost"] != pytest.approx(registry)
+    for method in ("kd", "bsp_wn+kd"):
+        settings.method = "bvh"
+        assert settings.intersect_cost == pytest.approx(bvh["intersect_cost"])
+        settings.method = method
+        assert settings.intersect_cost == pytest.approx(registry), method
 
 
 def test_heat_preview_without_the_maximum_keeps_the_render(addon, core, test_scene):

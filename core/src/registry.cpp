@@ -148,9 +148,10 @@ std::vector<OptionSpec> make_option_specs() {
          .label = "Build Quality", .short_label = "Quality",
          .help = "How thoroughly each node looks for its plane (fast: binned SAH near the root)"},
         {NUMBER_FIELD(fast_bins), .type = T::Int, .group = "bsp", .default_value = whole(kFastBins),
-         .min = whole(2), .max = whole(4096), .soft_max = 256, .label = "Fast Bins",
+         .min = whole(2), .max = whole(4096), .soft_max = 4096, .label = "Fast Bins",
          .short_label = "Fast Bins",
-         .help = "Fast builds: candidate planes per direction at a binned node"},
+         .help = "Fast builds: bins per direction at a binned node (a sweep node of n "
+                 "references at most 4 + n / 128)"},
         {NUMBER_FIELD(fast_min_refs), .type = T::Int, .group = "bsp",
          .default_value = whole(kFastMinRefs), .min = whole(2), .max = whole(INT32_MAX),
          .soft_max = 1 << 20, .label = "Fast Binned Size", .short_label = "Binned From",
@@ -260,9 +261,7 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"kd", "kd (SAH)",
                  "Axis-aligned kd-tree, SAH with perfect splits, O(N log N) build "
                  "(Wald & Havran 2006).",
-                 kKdBuilder, "axes", false, false, kQuality,
-                 // Fine bins cost kd nothing (tree.hpp, kKdFastBins).
-                 {{"fast_bins", whole(kKdFastBins)}}});
+                 kKdBuilder, "axes", false, false, kQuality, {}});
     m.push_back({"rbsp", "RBSP",
                  "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
                  "else the three axes plus K - 3 golden-spiral points) at every node.",

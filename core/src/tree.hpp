@@ -133,14 +133,22 @@ constexpr uint32_t kMaxLeafCount = Node::kMaxPayload;
 // a quicker build of a slightly worse tree, for previews. The BVH is binned
 // either way.
 enum class BuildQuality : int { Exact = 0, Fast = 1 };
-constexpr int kFastBins = 32;
-// kd's own default (registry.cpp): counting a reference costs the same for
-// any bin count and pricing a kd bin is a few flops, so kd bins finely. 32
-// bins put conference's root plane elsewhere than the exact sweep does, and
-// its camera rays took 7 % more steps; 1024 bins build as fast, with the
-// exact tree's steps (docs/build_quality.md).
-constexpr int kKdFastBins = 1024;
+// At most this many bins per direction. Counting a reference costs the same
+// for any bin count; 32 bins put conference's root plane elsewhere than the
+// exact sweep does, and its camera rays took 7 % more steps (kd) and 5 %
+// (bsp_wn+kd K = 8); 1024 build as fast (docs/build_quality.md).
+constexpr int kFastBins = 1024;
 constexpr int kFastMinRefs = 4096;
+// The sweep prices each binned plane with its cell's areas (a clip of the
+// cell's faces), not a few flops as kd does, so a sweep node of n references
+// prices at most kSweepMinBins + n / kSweepRefsPerBin bins per direction
+// (as Embree's binned builders do, 4 + n / 20): the root of a big scene gets
+// fast_bins, a node of 4096 references 36.
+constexpr int kSweepMinBins = 4;
+constexpr size_t kSweepRefsPerBin = 128;
+inline int sweep_bins(size_t refs, int fast_bins) {
+    return int(std::min<size_t>(size_t(fast_bins), kSweepMinBins + refs / kSweepRefsPerBin));
+}
 // The exact builds split wherever a split is any cheaper than a leaf, and
 // most of their nodes are deep ones that save a few percent each. A fast
 // build makes a split only where it saves at least kFastMinGain of the

@@ -414,7 +414,7 @@ private:
     }
 
     // The fast build quality's sweep of a big node: every direction's
-    // candidates are the inner boundaries of fast_bins equal bins over the
+    // candidates are the inner boundaries of sweep_bins() equal bins over the
     // cell's extent (SweepBins), priced with the same areas and cost model
     // as the exact sweep. One pass over the references projects each on all
     // directions (its polygon is read once); big nodes count chunks of
@@ -429,7 +429,7 @@ private:
             int axis;
             axis_dir[j] = is_axis(dirs[j], axis);
             cps[j].project(cell, Vec3d(dirs[j]));
-            proto[j].reset(cps[j].lo(), cps[j].hi(), opt_.fast_bins);
+            proto[j].reset(cps[j].lo(), cps[j].hi(), sweep_bins(n, opt_.fast_bins));
         }
         auto count = [&](size_t b, size_t e, std::vector<SweepBins>& bins) {
             for (size_t i = b; i < e; ++i) {

@@ -1,6 +1,7 @@
 """The sweep builder's fast build quality (issue 25): nodes of at least
 fast_min_refs references choose among fast_bins binned planes per direction,
-smaller ones sweep exactly, and a split is made only where it saves
+smaller ones sweep exactly (a sweep node of n references at most
+4 + n / 128 of them), and a split is made only where it saves
 fast_min_gain of the leaf's cost. fast_min_refs is set low here so that the
 small generated scenes have binned nodes and the tests take seconds.
 
@@ -57,10 +58,16 @@ def test_no_binned_node_is_the_exact_tree(room, method, options):
     assert gain.stats["interior_nodes"] < exact.stats["interior_nodes"]
 
 
-def test_more_bins_different_tree(room):
-    a = bsplab.build(room, "bsp_wn+kd", k=8, **fast(fast_bins=8))
-    b = bsplab.build(room, "bsp_wn+kd", k=8, **fast(fast_bins=64))
-    assert a.node_bytes() != b.node_bytes()
+def test_bins_follow_the_node_size(room):
+    # A sweep node of n references prices at most min(fast_bins, 4 + n / 128)
+    # bins per direction (tree.hpp, sweep_bins): room's root, its biggest
+    # node, 4 + 2076 // 128 = 20. More bins than that change nothing; fewer
+    # can give another tree (19 and 4 do; 8 happens to find the same planes).
+    def tree(bins):
+        return bsplab.build(room, "bsp_wn+kd", k=8, **fast(fast_bins=bins)).node_bytes()
+    full = tree(1024)
+    assert tree(20) == full and tree(64) == full
+    assert tree(19) != full and tree(4) != full
 
 
 def test_fast_is_the_same_tree_on_any_thread_count():
