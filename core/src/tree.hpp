@@ -3,6 +3,7 @@
 // or, for a bounding-volume hierarchy (Structure::Bvh), 32-byte box nodes
 // (bvh_node.hpp) over the same reference array.
 #pragma once
+#include <algorithm>
 #include <cassert>
 #include <cstdint>
 #include <string>

@@ -408,7 +408,8 @@ private:
     // counted apart (an upper bound: directions may be fewer than k + 3).
     uint64_t binned_scratch_bytes(size_t n) const {
         const uint64_t chunks = n > kParallelDirections && threads_ > 1 ? (n + kBinChunk - 1) / kBinChunk : 1;
-        const uint64_t per_dir = uint64_t(std::max(opt_.fast_bins, 2)) * (sizeof(float) + 2 * sizeof(uint32_t)) +
+        const uint64_t bins = uint64_t(std::max(sweep_bins(n, opt_.fast_bins), 2));
+        const uint64_t per_dir = bins * (sizeof(float) + 2 * sizeof(uint32_t)) +
                                  sizeof(SweepBins) + sizeof(CellProjection);
         return chunks * uint64_t(opt_.k + 3) * per_dir;
     }

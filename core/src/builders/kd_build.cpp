@@ -332,7 +332,7 @@ private:
         const int a = (k + 1) % 3, b = (k + 2) % 3;
         const float cap = d[a] * d[b], rim = d[a] + d[b];
         // Read once: Vec3's operator[] branches on k, and in the loop below
-        // those branches were a tenth of the sweep's instructions.
+        // those branches were a sixth of the sweep's instructions.
         const float lo = box.lo[k], hi = box.hi[k];
         const EventSpan& e = ev.axis[k];
         uint32_t nl = 0, nr = ev.count;
