@@ -261,7 +261,7 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"kd", "kd (SAH)",
                  "Axis-aligned kd-tree, SAH with perfect splits, O(N log N) build "
                  "(Wald & Havran 2006).",
-                 kKdBuilder, "axes", false, false, kQuality, {}});
+                 kKdBuilder, "axes", false, false, kQuality});
     m.push_back({"rbsp", "RBSP",
                  "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
                  "else the three axes plus K - 3 golden-spiral points) at every node.",

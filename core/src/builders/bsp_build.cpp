@@ -196,9 +196,7 @@ public:
         split_budget(budget, s.n_left, s.n_right, lbudget, rbudget);
         const uint64_t lid = Rng::mix(id, 1), rid = Rng::mix(id, 2);
         if (spawns(n, std::min(s.n_left, s.n_right))) {
-            auto right_task = std::async(std::launch::async, [&, r = std::move(right),
-                                                             c = std::move(rcell)]() mutable {
-                const SpawnedTask slot(*this);
+            auto right_task = spawn([&, r = std::move(right), c = std::move(rcell)]() mutable {
                 TaskCredit task_credit(memory_);
                 NodeArena::Local task_nodes(arena_);
                 r.charge.move_to(task_credit);

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <future>
 #include <memory>
 #include <vector>
 
@@ -101,8 +102,8 @@ protected:
     }
 
     // True when a node of `triangles` (references) whose smaller child holds
-    // `smaller` builds its right subtree on a task of its own; the task then
-    // holds a SpawnedTask while it runs.
+    // `smaller` builds its right subtree on a task of its own; it then takes
+    // one of the open task slots, which spawn() gives back when the task ends.
     bool spawns(size_t triangles, size_t smaller) {
         if (threads_ <= 1 || smaller <= kMinSpawnTriangles ||
             triangles * kSpawnShare * size_t(threads_) < tris_.size())
@@ -111,16 +112,16 @@ protected:
         open_tasks_.fetch_sub(1);
         return false;
     }
-    class SpawnedTask {
-    public:
-        explicit SpawnedTask(BuilderBase& builder) : open_(builder.open_tasks_) {}
-        ~SpawnedTask() { open_.fetch_sub(1); }
-        SpawnedTask(const SpawnedTask&) = delete;
-        SpawnedTask& operator=(const SpawnedTask&) = delete;
 
-    private:
-        std::atomic<int>& open_;
-    };
+    // Runs `work` on a task of its own (after spawns() said yes), holding
+    // the slot spawns() took until the work returns or throws.
+    template <class Work>
+    auto spawn(Work work) {
+        return std::async(std::launch::async, [this, work = std::move(work)]() mutable {
+            const SpawnedTask slot(open_tasks_);
+            return work();
+        });
+    }
 
     const std::vector<Triangle>& tris_;
     const BuildOptions& opt_;
@@ -130,6 +131,18 @@ protected:
     std::atomic<int> open_tasks_{0};  // spawned tasks still running
     MemoryBudget& memory_;
     NodeArena& arena_;  // the pointer tree's nodes and leaf lists (a Local per task)
+
+private:
+    class SpawnedTask {
+    public:
+        explicit SpawnedTask(std::atomic<int>& open) : open_(open) {}
+        ~SpawnedTask() { open_.fetch_sub(1); }
+        SpawnedTask(const SpawnedTask&) = delete;
+        SpawnedTask& operator=(const SpawnedTask&) = delete;
+
+    private:
+        std::atomic<int>& open_;
+    };
 };
 
 // Each child may use the parent's reference budget in proportion to its

@@ -277,8 +277,7 @@ private:
         node->split = s.pos == 0.0f ? 0.0f : s.pos;
         node->area = box.area();
         if (spawns(n, std::min(left.refs.size(), right.refs.size()))) {
-            auto right_task = std::async(std::launch::async, [&] {
-                const SpawnedTask slot(*this);
+            auto right_task = spawn([&] {
                 return build_binned(std::move(right), rbox, depth + 1, rbudget);
             });
             node->child[0] = build_binned_node(std::move(left), lbox, depth + 1, lbudget, task);
@@ -612,8 +611,7 @@ private:
         if (spawns(ev.count, std::min(left.count, right.count))) {
             // The right lists stay put until the task has copied them: the
             // left subtree only writes above them.
-            auto right_task = std::async(std::launch::async, [&] {
-                const SpawnedTask slot(*this);
+            auto right_task = spawn([&] {
                 return build(right, rbox, depth + 1, rbudget);
             });
             node->child[0] = build_node(left, lbox, depth + 1, lbudget, scratch, credit);
