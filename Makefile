@@ -8,7 +8,11 @@ BIN    := $(VENV)/bin
 # against what the add-on meets.
 DEPS   := "numpy>=1.23,<2" "embreex>=4.3" "pytest>=7" "scikit-build-core>=0.10" "nanobind>=2.4" \
           "matplotlib>=3.7" "dask[distributed]>=2024.1" "hypothesis>=6.100" \
-          "trimesh>=4" "pillow>=9" "tqdm>=4.66"
+          "trimesh>=4" "pillow>=9" "tqdm>=4.66" "pytest-xdist>=3.5"
+
+# pytest-xdist's workers for the core suite and the sanitizer run: one per
+# core (2 on CI's machine). `make test-core XDIST=` runs them in one process.
+XDIST  ?= -n auto
 
 .PHONY: all venv core demo demo-core test test-cpp test-core test-sanitize test-tsan test-blender bench bench-family bench-cull results results-quick addon scenes clean
 
@@ -46,20 +50,22 @@ test-cpp:
 	bash core/cpp_tests/run.sh
 
 # The core suite and the add-on's bpy-free tests (addon_tests/without_blender:
-# its jobs, images and overlay arrays on the real core, without Blender).
+# its jobs, images and overlay arrays on the real core, without Blender), in
+# pytest-xdist workers: 17.7 min in one process on CI's 2 cores (2026-12-05).
 test-core: core
 	bash core/tools/ensure_qemu_user.sh
-	$(BIN)/python -m pytest -q core/tests addon_tests/without_blender
+	$(BIN)/python -m pytest -q $(XDIST) core/tests addon_tests/without_blender
 
 # The core built with AddressSanitizer + UndefinedBehaviorSanitizer in folders
 # of its own (core/build/asan, out/sanitize/asan; .venv's install is left
 # alone), running the fast part of the files that drive the C++ (conftest.py); any
-# report fails it. About 11 minutes with the compile (264 s + 6.6 min on the
-# 2-core machine, 2026-12-05). docs/testing.md.
+# report fails it. About 11 minutes with the compile in one process (264 s +
+# 6.6 min on the 2-core machine, 2026-12-05); its tests now run in pytest-xdist
+# workers too (XDIST). docs/testing.md.
 test-sanitize: venv
 	@echo
 	@echo "=== Core under AddressSanitizer + UndefinedBehaviorSanitizer (fast part: pytest -m 'not slow') ==="
-	BSPLAB_PYTHON=$(abspath $(BIN)/python) bash core/tools/sanitize.sh asan
+	BSPLAB_PYTHON=$(abspath $(BIN)/python) bash core/tools/sanitize.sh asan $(XDIST)
 
 # ThreadSanitizer over the parallel builders and traces; by hand, not in CI.
 test-tsan: venv

@@ -21,6 +21,10 @@ the zip carries the core and `embreex` for both (PYTHON_TARGETS below):
 6. dist/bsplab_addon-<version>-legacy.zip, the same add-on as a legacy
    add-on for Blender 3.x-4.1 (no wheels: install the core separately).
 
+With --wheels-only it stops after steps 1-2 (run_all.sh builds the wheels
+in the background while the bpy venvs download; its second run finds them
+up to date and makes the zips).
+
 Run it with the project's Python 3.11 (the one that builds core/: it needs
 scikit-build-core and nanobind for `--no-build-isolation`; the 3.13 build
 uses build isolation when its Python lacks them). Prints the zip's path last.
@@ -279,6 +283,9 @@ def main(argv=None):
                         help="command of a CPython 3.13 that builds the stable-ABI core wheel "
                              "(default: $BSPLAB_PYTHON313; addon_tests/in_blender/python313.sh "
                              "prints one)")
+    parser.add_argument("--wheels-only", action="store_true",
+                        help="build/download the wheels into --wheel-dir and stop (run_all.sh "
+                             "builds them while the bpy venvs download; the zip comes after)")
     args = parser.parse_args(argv)
 
     args.wheel_dir.mkdir(parents=True, exist_ok=True)
@@ -298,6 +305,9 @@ def main(argv=None):
             core_wheel = build_core_wheel(builders[target.version], args.wheel_dir, target)
         check_core_wheel(core_wheel, target)
         wheels += [core_wheel, download_embreex(args.python, args.wheel_dir, target)]
+    if args.wheels_only:
+        log("wheels ready: " + ", ".join(w.name for w in wheels))
+        return 0
     tools = find_blender_ext(args.python)
     log("Blender extension tool(s): " + ", ".join(tools))
     source = stage(wheels)

@@ -5,6 +5,8 @@
 #   ensure_bpy_venv DIR VERSION [PYTHON RUNNER]
 #                                 create or reuse a venv with bpy, numpy, pytest
 #   find_python313                a usable CPython 3.13; sets PY313 and RUN313
+#   start_wheels, wait_wheels     the wheels build_extension needs, in the
+#                                 background (stop_wheels ends them early)
 #   build_extension               wheels + extension zip; sets ZIP
 #   install_deps                  bsplab + embreex wheels into $DEPS (3.11)
 #   install_deps313               the same into $DEPS313 (3.13, needs PY313)
@@ -135,6 +137,38 @@ make_debian13_venv() {
     rm -rf "$BSPLAB_DEBIAN13_ROOT${DEBIAN13_PYTHON%/bin/python}"
     "$REPO/addon_tests/in_blender/in_debian13.sh" /usr/bin/python3.13 -m venv "${DEBIAN13_PYTHON%/bin/python}" &&
         "$REPO/addon_tests/in_blender/in_debian13.sh" "$DEBIAN13_PYTHON" -c 'import ssl, pip'
+}
+
+start_wheels() {  # needs find_python313 first: build_extension's wheels, in the background
+    # The bsplab wheels (the cp312-abi3 one is a whole compile of the core for
+    # the 3.13, about 3 minutes on 2 cores) and embreex's, built while the
+    # bpy venvs download (network-bound); build_extension then finds them up
+    # to date. In a process group of its own (setsid) so that stop_wheels can
+    # end the compile with it; wait_wheels prints its output.
+    WHEELS_LOG="$(mktemp)"
+    log "building the wheels in the background (log shown when done)"
+    setsid "$PY" "$REPO/addon_tools/build_extension.py" --wheel-dir "$WHEELS" --wheels-only \
+        --python313 "${RUN313:+$RUN313 }$PY313" >"$WHEELS_LOG" 2>&1 &
+    WHEELS_PID=$!
+}
+
+wait_wheels() {  # the background wheels' exit status, after their output
+    [ -n "${WHEELS_PID:-}" ] || return 0
+    local rc=0
+    wait "$WHEELS_PID" || rc=$?
+    WHEELS_PID=""
+    log "the wheels (built in the background)"
+    cat "$WHEELS_LOG"
+    rm -f "$WHEELS_LOG"
+    return "$rc"
+}
+
+stop_wheels() {  # on an early exit: end the background build, pip and the compiler with it
+    [ -n "${WHEELS_PID:-}" ] || return 0
+    kill -- "-$WHEELS_PID" 2>/dev/null
+    wait "$WHEELS_PID" 2>/dev/null
+    WHEELS_PID=""
+    rm -f "$WHEELS_LOG"
 }
 
 build_extension() {  # needs find_python313 first

@@ -14,9 +14,10 @@
 # - creates or reuses .venv-bpy42/, -45/, -50/ and -52/ (git-ignored) with
 #   bpy, the numpy that release ships (< 2 for 3.11, bpy 5.2's own pin) and
 #   pytest;
-# - builds the bsplab wheels (cp311, and cp312-abi3 with the Python 3.13) and
-#   the extension zip (addon_tools/build_extension.py, which also validates the zip
-#   with each bpy's copy of Blender's own tool);
+# - builds the bsplab wheels (cp311, and cp312-abi3 with the Python 3.13: a
+#   whole compile of the core) in the background while the venvs download,
+#   then the extension zip (addon_tools/build_extension.py, which also
+#   validates the zip with each bpy's copy of Blender's own tool);
 # - installs the bsplab and embreex wheels into build/blender-deps/ (3.11)
 #   and build/blender-deps-313/, put on the path of each run (PYTHONPATH, or
 #   BSPLAB_PYTHONPATH inside Blender), so the extension test can check that
@@ -44,23 +45,28 @@ lap() {  # NAME: the time since the last lap
     SECONDS=0
 }
 
+LOGS="$(mktemp -d)"
+trap 'stop_wheels; rm -rf "$LOGS"' EXIT
+
+find_python313 || die "no Python 3.13 for bpy 5.2"
+# The wheels compile (CPU) while the venvs download (network): about 2
+# minutes less than one after the other in a fresh clone.
+start_wheels
 ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
 ensure_bpy_venv "$REPO/.venv-bpy45" 4.5.15 || die "could not set up bpy 4.5.15"
 ensure_bpy_venv "$REPO/.venv-bpy50" 5.0.1 || die "could not set up bpy 5.0.1"
-find_python313 || die "no Python 3.13 for bpy 5.2"
 ensure_bpy_venv "$REPO/.venv-bpy52" 5.2.3 "$PY313" "$RUN313" || die "could not set up bpy 5.2.3"
-lap "set-up: bpy venvs (reused when present)"
+lap "set-up: bpy venvs (reused when present), wheels started"
+wait_wheels || die "building the wheels failed (addon_tools/build_extension.py --wheels-only)"
+lap "set-up: the rest of the wheels' build"
 build_extension || die "addon_tools/build_extension.py failed"
 install_deps || die "could not install the wheels into $DEPS"
 install_deps313 "$REPO/.venv-bpy52" || die "could not install the wheels into $DEPS313"
-lap "set-up: wheels, zip, validation"
+lap "set-up: zip, validation"
 
 export BSPLAB_STRICT=1 BSPLAB_EXTENSION_ZIP="$ZIP"
 declare -a RESULTS=()
 STATUS=0
-
-LOGS="$(mktemp -d)"
-trap 'rm -rf "$LOGS"' EXIT
 
 record() {  # NAME RC
     if [ "$2" -eq 0 ]; then RESULTS+=("$1: passed"); else RESULTS+=("$1: FAILED (exit $2)"); STATUS=1; fi

@@ -45,7 +45,9 @@ def pytest_report_header(config):
 # every method; the experiment runner's tests (Python bookkeeping around
 # the same builds and traces). What is left (`-m "not slow"`) still builds
 # every method and traces with and without culling; core/tools/sanitize.sh
-# runs the part of it in SANITIZER_FILES under ASan + UBSan (7 minutes).
+# runs the part of it in SANITIZER_FILES under ASan + UBSan (6.1 min in one
+# process in CI on 2026-12-05; `make test-sanitize` runs it in one
+# pytest-xdist worker per core).
 SLOW_TESTS = {
     "test_agreement.py::test_build_is_deterministic_across_thread_counts",
     "test_bsp.py::test_more_directions_find_cheaper_trees",
