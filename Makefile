@@ -51,7 +51,8 @@ test-cpp:
 
 # The core suite and the add-on's bpy-free tests (addon_tests/without_blender:
 # its jobs, images and overlay arrays on the real core, without Blender), in
-# pytest-xdist workers: 17.7 min in one process on CI's 2 cores (2026-12-05).
+# pytest-xdist workers: 13.2 min in two on CI's 2 cores, 17.7 in one
+# process (2026-12-05).
 test-core: core
 	bash core/tools/ensure_qemu_user.sh
 	$(BIN)/python -m pytest -q $(XDIST) core/tests addon_tests/without_blender
@@ -59,9 +60,9 @@ test-core: core
 # The core built with AddressSanitizer + UndefinedBehaviorSanitizer in folders
 # of its own (core/build/asan, out/sanitize/asan; .venv's install is left
 # alone), running the fast part of the files that drive the C++ (conftest.py); any
-# report fails it. About 11 minutes with the compile in one process (264 s +
-# 6.6 min on the 2-core machine, 2026-12-05); its tests now run in pytest-xdist
-# workers too (XDIST). docs/testing.md.
+# report fails it. About 8 minutes with the compile (242 s + 3.7 min in two
+# pytest-xdist workers on the 2-core machine, 2026-12-05; 6.1 min in one
+# process). docs/testing.md.
 test-sanitize: venv
 	@echo
 	@echo "=== Core under AddressSanitizer + UndefinedBehaviorSanitizer (fast part: pytest -m 'not slow') ==="
