@@ -60,6 +60,28 @@ int clip_plane(const Point* in, int n, Point* out, int axis, double plane, doubl
     return m;
 }
 
+// Splits the polygon at p[axis] = plane into its parts below and above, in
+// one pass: the same as clip_plane with sign -1 and with sign +1 (a vertex
+// on the plane goes to both, an edge crossing it gives both its point, which
+// interpolate computes the same whichever way the edge runs), without
+// walking the polygon and computing its crossings twice.
+void split_plane(const Point* in, int n, int axis, double plane, Point* below, int& nb,
+                 Point* above, int& na) {
+    nb = na = 0;
+    for (int i = 0; i < n; ++i) {
+        const Point& a = in[i];
+        const Point& b = in[i + 1 < n ? i + 1 : 0];
+        const double da = a[axis] - plane, db = b[axis] - plane;
+        if (da <= 0.0) below[nb++] = a;
+        if (da >= 0.0) above[na++] = a;
+        if ((da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0)) {
+            const Point x = interpolate(a, b, axis, plane);
+            below[nb++] = x;
+            above[na++] = x;
+        }
+    }
+}
+
 // Whether clip_plane would keep the polygon as it is: every vertex on the
 // kept side (or on the plane), so no edge crosses it.
 bool inside_plane(const Point* in, int n, int axis, double plane, double sign) {
@@ -73,6 +95,12 @@ int clip_to_box(const Triangle& tri, const Box& box, Point (&buf)[2][kMaxVerts +
     int n = 3;
     for (int i = 0; i < 3; ++i) buf[0][i] = {{tri.v[i].x, tri.v[i].y, tri.v[i].z}};
     cur = 0;
+    // A triangle inside the box needs no plane at all (the loop below would
+    // test all six and skip them): one look at its float bounds says so.
+    const Box tb = tri.bounds();
+    if (box.lo.x <= tb.lo.x && box.lo.y <= tb.lo.y && box.lo.z <= tb.lo.z &&
+        tb.hi.x <= box.hi.x && tb.hi.y <= box.hi.y && tb.hi.z <= box.hi.z)
+        return n;
     // Most planes of the box do not cut the triangle (the builder clips the
     // triangles a split plane straddles, which mostly lie well inside the
     // rest of the cell): those are skipped, which gives the same polygon.
@@ -144,16 +172,16 @@ Box clipped_bounds(const Triangle& tri, const Box& box) {
 void split_clipped_bounds(const Triangle& tri, const Box& box, int axis, float pos, Box& below,
                           Box& above) {
     Point buf[2][kMaxVerts + 3];
-    Point half[kMaxVerts + 4];
+    Point lower[kMaxVerts + 4], upper[kMaxVerts + 4];
     int cur;
     const int n = clip_to_box(tri, box, buf, cur);
     Box bbox = box, abox = box;
     bbox.hi[axis] = pos;
     abox.lo[axis] = pos;
-    int m = clip_plane(buf[cur], n, half, axis, pos, -1.0);
-    below = outward_bounds(half, m, bbox);
-    m = clip_plane(buf[cur], n, half, axis, pos, 1.0);
-    above = outward_bounds(half, m, abox);
+    int nb, na;
+    split_plane(buf[cur], n, axis, pos, lower, nb, upper, na);
+    below = outward_bounds(lower, nb, bbox);
+    above = outward_bounds(upper, na, abox);
 }
 
 }  // namespace bsp

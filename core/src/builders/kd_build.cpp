@@ -14,6 +14,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <cstring>
 #include <functional>
 #include <future>
 #include <memory>
@@ -346,6 +348,18 @@ private:
             const uint32_t ends = by_type[kEnd], planars = by_type[kPlanar],
                            starts = by_type[kStart];
             nr -= planars + ends;
+            if (planars == 0) {
+                // Most positions: no planar triangle, so one cost (the loop
+                // below would try the planar-left side alone).
+                if (p > lo && p < hi) {
+                    const float pl = 2.0f * (cap + (p - lo) * rim) * inv_area;
+                    const float pr = 2.0f * (cap + (hi - p) * rim) * inv_area;
+                    const float cost = cost_.split(cost_.kd_step(), pl, nl, pr, nr);
+                    if (cost < best.cost) best = {k, p, true, cost, nl, nr};
+                }
+                nl += starts;
+                continue;
+            }
             const bool inside = p > lo && p < hi;
             // On the cell's own face a split can still pay: it cuts the
             // triangles lying in that face (walls, floors) off into a flat
@@ -464,16 +478,22 @@ private:
         const uint16_t* marks = scratch.marks.data();
         Event* l = in.data;
         Event* r = right_room;
+        static_assert(kLeftOnly == 1 && kRightOnly == 2 && kBoth == 0);
+        static_assert(sizeof(Event) == 8 && offsetof(Event, key) == 4);
         for (const Event& e : in) {
             // Branch-free: both are written, one pointer moves. The slot at
             // l is the one just read or an earlier one (l never passes the
-            // reader), and the one at r is free room.
-            const uint32_t sd = marks[e.tri()] & 3u;
-            const Event copy = e;
-            *l = copy;
-            *r = copy;
-            l += sd == kLeftOnly;
-            r += sd == kRightOnly;
+            // reader), and the one at r is free room. The side's two bits
+            // are the steps themselves: compares here became a branch,
+            // mispredicted on every axis but the split's.
+            // The event moves as one 8-byte word (pos low, key high).
+            uint64_t word;
+            std::memcpy(&word, &e, sizeof word);
+            const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;  // key >> 2
+            std::memcpy(l, &word, sizeof word);
+            std::memcpy(r, &word, sizeof word);
+            l += sd & 1u;
+            r += sd >> 1;
         }
         nl = size_t(l - in.data);
         const size_t nr = size_t(r - right_room);
