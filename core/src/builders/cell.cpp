@@ -265,19 +265,34 @@ void CellProjection::areas_at(double t, double& below, double& above) const {
         } else {
             // Clip the face to u.x <= t using the stored projections.
             // Each vertex's distance is computed once and carried to the
-            // next edge (no modulo per vertex: this loop is the sweep's hot spot).
+            // next edge; the closing edge (last vertex to first) comes after
+            // the loop, so no index wraps inside it (the wrap was a branch,
+            // mispredicted at each face's last vertex). A vertex is written
+            // always and kept by the count, without a branch. The crossing
+            // stays a branch: computing every edge's point to drop the
+            // branch took 10 % more instructions for the 19 M mispredicts
+            // it saved (bunny's first 12,000 triangles, bsp_wn+kd K = 8).
             ClipBuffer buf;
             size_t m = 0;
             const double* d = &proj_[f.first];
             const Vec3d* p = &pts[f.first];
+            const uint32_t last = f.count - 1;
             double da = d[0] - t;
-            for (uint32_t i = 0; i < f.count && m + 2 < ClipBuffer::kCapacity; ++i) {
-                const uint32_t j = i + 1 == f.count ? 0 : i + 1;
-                const double db = d[j] - t;
-                if (da <= 0) buf.set(m++, p[i]);
+            uint32_t i = 0;
+            for (; i < last && m + 2 < ClipBuffer::kCapacity; ++i) {
+                const double db = d[i + 1] - t;
+                buf.set(m, p[i]);
+                m += da <= 0;
                 if ((da < 0 && db > 0) || (da > 0 && db < 0))
-                    buf.set(m++, p[i] + (p[j] - p[i]) * (da / (da - db)));
+                    buf.set(m++, p[i] + (p[i + 1] - p[i]) * (da / (da - db)));
                 da = db;
+            }
+            if (i == last && m + 2 < ClipBuffer::kCapacity) {
+                const double db = d[0] - t;
+                buf.set(m, p[last]);
+                m += da <= 0;
+                if ((da < 0 && db > 0) || (da > 0 && db < 0))
+                    buf.set(m++, p[last] + (p[0] - p[last]) * (da / (da - db)));
             }
             b = m < 3 ? 0.0 : std::min(f.area, 0.5 * twice_area(faces[k].normal, buf, m));
         }
