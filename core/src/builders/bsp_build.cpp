@@ -126,25 +126,45 @@ public:
         const bool ize = strategy_->tries_triangle_planes();
         SweepResult total, ize_result;
         std::vector<SweepResult> per_dir(dirs.size());
+        // A direction's sweep starts from a bound, not from an infinite
+        // cost: a candidate at or above the leaf's limit cannot make a
+        // split (the fallback is tried only when the best is not below the
+        // limit, and must be below it too), and in the serial sweeps one
+        // at or above the best of the directions before it cannot win
+        // either (merged in direction order, the earlier wins a tie). So
+        // the sweep prices fewer candidates' areas, and the node's split
+        // is the same. The parallel sweeps start from the limit alone, so
+        // the trees do not depend on the threads.
+        const float limit = cost_.split_limit(n);
+        SweepResult bound;
+        bound.best.cost = limit;
+        bound.fallback.cost = limit;
+        // In parallel, BSP_IZE's planes are the first task (the longest);
+        // in series the last, from the directions' best (merged after them,
+        // they win only below it).
         auto task_range = [&](size_t b, size_t e) {
             for (size_t j = b; j < e; ++j) {
-                if (ize && j == 0) ize_result = ize_planes(refs, cell, area, rng);
-                else per_dir[j - ize] = sweep(refs, cell, area, dirs[j - ize]);
+                if (ize && j == 0) ize_result = ize_planes(refs, cell, area, rng, bound);
+                else per_dir[j - ize] = sweep(refs, cell, area, dirs[j - ize], bound);
             }
         };
         const size_t tasks = dirs.size() + ize;
         if (binned) {
             binned_sweep(refs, cell, area, dirs, per_dir);
-            if (ize) ize_result = ize_planes(refs, cell, area, rng);
+            if (ize) ize_result = ize_planes(refs, cell, area, rng, bound);
         } else if (threads_ > 1 && n > kParallelDirections) {
             parallel_for(tasks, 1, threads_, task_range);
         } else {
-            task_range(0, tasks);
+            SweepResult start = bound;
+            for (size_t j = 0; j < dirs.size(); ++j) {
+                per_dir[j] = sweep(refs, cell, area, dirs[j], start);
+                merge(start, per_dir[j]);
+            }
+            if (ize) ize_result = ize_planes(refs, cell, area, rng, start);
         }
         for (const SweepResult& r : per_dir) merge(total, r);  // fixed order: deterministic
         if (ize) merge(total, ize_result);
 
-        const float limit = cost_.split_limit(n);
         Candidate s = total.best;
         if (!(s.cost < limit)) s = total.fallback;  // Ize et al.'s retry at a constant cost
         if (!(s.cost < limit)) return leaf(refs, area, depth, credit, nodes);
@@ -338,8 +358,12 @@ private:
         return scratch;
     }
 
-    SweepResult sweep(const NodeRefs& nr, const Cell& cell, double area, const Vec3& u) const {
+    // `start`: the costs a candidate must beat (no plane of their own).
+    SweepResult sweep(const NodeRefs& nr, const Cell& cell, double area, const Vec3& u,
+                      const SweepResult& start) const {
         SweepResult res;
+        res.best.cost = start.best.cost;
+        res.fallback.cost = start.fallback.cost;
         const size_t n = nr.refs.size();
         SweepScratch& scratch = sweep_scratch();
         auto& [starts, ends, planars, cp] = scratch;
@@ -484,7 +508,8 @@ private:
     // node, the triangle's own plane and the three planes through its edges
     // perpendicular to it. They are not swept; a bounding-volume hierarchy
     // over the references counts each side in about O(sqrt n).
-    SweepResult ize_planes(const NodeRefs& nr, const Cell& cell, double area, Rng& rng) const;
+    SweepResult ize_planes(const NodeRefs& nr, const Cell& cell, double area, Rng& rng,
+                           const SweepResult& start) const;
 
     void split_refs(const NodeRefs& nr, const Candidate& s, NodeRefs& left,
                     NodeRefs& right) const {
@@ -573,8 +598,10 @@ struct PlaneCount {
 };
 
 SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double area,
-                                   Rng& rng) const {
+                                   Rng& rng, const SweepResult& start) const {
     SweepResult res;
+    res.best.cost = start.best.cost;
+    res.fallback.cost = start.fallback.cost;
     const size_t n = nr.refs.size();
     // Reference boxes and a median-split BVH over them.
     std::vector<Box> boxes(n);
@@ -655,15 +682,20 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
     const double inv_area = 1.0 / area;
     CellProjection cp;  // re-projected per plane, its arrays kept
     auto try_plane = [&](const Vec3& u, float d) {
-        cp.project(cell, Vec3d(u));
-        if (!cp.cuts(double(d))) return;
         int axis;
         const bool is_ax = is_axis(u, axis);
         const bool kd = opt_.kd_nodes && is_ax;
         const PlaneCount pc = count(u, is_ax, d);
+        const uint32_t l = pc.below + pc.both, r = pc.above + pc.both;
+        // The cell is projected and its areas computed only where the
+        // counts alone do not rule the plane out (either check drops it).
+        if (!may_win(res, kd, n, l + pc.planar, r) &&
+            !(pc.planar && may_win(res, kd, n, l, r + pc.planar)))
+            return;
+        cp.project(cell, Vec3d(u));
+        if (!cp.cuts(double(d))) return;
         double below, above;
         cp.areas_at(double(d), below, above);
-        const uint32_t l = pc.below + pc.both, r = pc.above + pc.both;
         // Planar references first join the left (as split_refs() with planar_left).
         offer(res, u, kd, d, true, l + pc.planar, r, below, above, inv_area, n);
         if (pc.planar) offer(res, u, kd, d, false, l, r + pc.planar, below, above, inv_area, n);
