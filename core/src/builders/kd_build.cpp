@@ -336,6 +336,11 @@ private:
         // those branches were a sixth of the sweep's instructions.
         const float lo = box.lo[k], hi = box.hi[k];
         const EventSpan& e = ev.axis[k];
+        // The children's surface areas over the parent's at plane p.
+        const auto child_areas = [&](float p, float& pl, float& pr) {
+            pl = 2.0f * (cap + (p - lo) * rim) * inv_area;
+            pr = 2.0f * (cap + (hi - p) * rim) * inv_area;
+        };
         uint32_t nl = 0, nr = ev.count;
         for (size_t i = 0; i < e.size;) {
             const float p = e[i].pos;
@@ -348,30 +353,29 @@ private:
             const uint32_t ends = by_type[kEnd], planars = by_type[kPlanar],
                            starts = by_type[kStart];
             nr -= planars + ends;
+            const bool inside = p > lo && p < hi;
             if (planars == 0) {
-                // Most positions: no planar triangle, so one cost (the loop
-                // below would try the planar-left side alone).
-                if (p > lo && p < hi) {
-                    const float pl = 2.0f * (cap + (p - lo) * rim) * inv_area;
-                    const float pr = 2.0f * (cap + (hi - p) * rim) * inv_area;
+                // Most positions: no planar triangle, so one plane inside
+                // the cell and one cost.
+                if (inside) {
+                    float pl, pr;
+                    child_areas(p, pl, pr);
                     const float cost = cost_.split(cost_.kd_step(), pl, nl, pr, nr);
                     if (cost < best.cost) best = {k, p, true, cost, nl, nr};
                 }
                 nl += starts;
                 continue;
             }
-            const bool inside = p > lo && p < hi;
             // On the cell's own face a split can still pay: it cuts the
             // triangles lying in that face (walls, floors) off into a flat
             // cell, so rays crossing the rest of the cell never test them.
-            const bool at_lo = p == lo && planars > 0;
-            const bool at_hi = p == hi && planars > 0;
+            const bool at_lo = p == lo, at_hi = p == hi;
             if (inside || at_lo || at_hi) {
-                const float pl = 2.0f * (cap + (p - lo) * rim) * inv_area;
-                const float pr = 2.0f * (cap + (hi - p) * rim) * inv_area;
-                // Planar triangles go left, then right; without any, both
-                // would give the same cost and the first would stay.
-                const int last = at_lo || planars == 0 ? 1 : 0;
+                float pl, pr;
+                child_areas(p, pl, pr);
+                // Planar triangles go left, then right (the first of equal
+                // costs stays); at the cell's faces only to the flat side.
+                const int last = at_lo ? 1 : 0;
                 for (int planar_left = at_hi ? 0 : 1; planar_left >= last; --planar_left) {
                     uint32_t l = nl + (planar_left ? planars : 0);
                     uint32_t r = nr + (planar_left ? 0 : planars);
