@@ -100,11 +100,13 @@ public:
             opt_.build_quality == BuildQuality::Fast && n >= size_t(std::max(opt_.fast_min_refs, 0));
 
         // The node's scratch space while it looks for a plane: its triangle
-        // ids, the sweeps' position arrays (per thread; a binned node's bins
-        // instead, per direction and chunk), BSP_IZE's reference BVH.
+        // ids, the sweeps' position arrays and the positions kept before
+        // the middle (at most one per event; per thread; a binned node's
+        // bins instead, per direction and chunk), BSP_IZE's reference BVH.
         const uint64_t sweep_bytes =
             binned ? binned_scratch_bytes(n)
-                   : uint64_t(n) * 3 * sizeof(float) * uint64_t(threads_);
+                   : uint64_t(n) * (3 * sizeof(float) + 2 * sizeof(SweepStop)) *
+                         uint64_t(threads_);
         Charge scratch(credit,
                        uint64_t(n) * (sizeof(uint32_t) +
                                       (strategy_->tries_triangle_planes() ? kIzeBytesPerRef : 0)) +
@@ -302,47 +304,78 @@ private:
 
     // Offers one candidate plane (counts given) to the result: at the cost
     // model's step, and under ^Kd a general plane at its fallback step too.
+    // A candidate replaces the best with a lower cost, or with an equal one
+    // when `tie_best` / `tie_fb` says it comes first (below).
     void offer(SweepResult& res, const Vec3& u, bool kd, float p, bool planar_left, uint32_t l,
-               uint32_t r, double below, double above, double inv_area, size_t n) const {
+               uint32_t r, double below, double above, double inv_area, size_t n,
+               bool tie_best = false, bool tie_fb = false) const {
         const double p_below = below * inv_area, p_above = above * inv_area;
         const float cost = cost_.split(cost_.step(kd, n), p_below, l, p_above, r);
-        if (cost < res.best.cost) res.best = {u, p, planar_left, kd, cost, l, r};
+        if (beats(cost, res.best.cost, tie_best)) res.best = {u, p, planar_left, kd, cost, l, r};
         if (cost_.has_fallback(kd)) {
             const float fb = cost_.split(cost_.fallback_step(), p_below, l, p_above, r);
-            if (fb < res.fallback.cost) res.fallback = {u, p, planar_left, kd, fb, l, r};
+            if (beats(fb, res.fallback.cost, tie_fb)) res.fallback = {u, p, planar_left, kd, fb, l, r};
         }
+    }
+
+    // Whether a cost (or a bound on one) takes the place of `current`: below
+    // it, or equal to it when the candidate wins a tie.
+    static bool beats(float cost, float current, bool tie) {
+        return cost < current || (tie && cost == current);
     }
 
     // Whether a candidate with nl references below and nr above (those in
     // the plane not yet counted) can beat the best so far or the fallback:
     // if not, its areas need not be computed.
-    bool may_win(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr) const {
-        if (cost_.lower_bound(cost_.step(kd, n), nl, nr) < res.best.cost) return true;
+    bool may_win(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr,
+                 bool tie_best = false, bool tie_fb = false) const {
+        if (beats(cost_.lower_bound(cost_.step(kd, n), nl, nr), res.best.cost, tie_best))
+            return true;
         return cost_.has_fallback(kd) &&
-               cost_.lower_bound(cost_.fallback_step(), nl, nr) < res.fallback.cost;
+               beats(cost_.lower_bound(cost_.fallback_step(), nl, nr), res.fallback.cost, tie_fb);
     }
 
-    // A second bound, for candidates beyond one already priced (at least
-    // as many references below as above): the part of a convex cell below
-    // a plane grows as the plane rises, and so does its surface (each
-    // face's clipped area does), so p_below is at least the p_below_min of
-    // the last candidate priced. With p_below + p_above >= 1 the weighted
-    // count is then at least p_below_min nl + (1 - p_below_min) nr when
-    // nl >= nr. 1e-7 of each probability absorbs the areas' rounding (about
-    // 1e-14 of the cell's), and the cost's float arithmetic is monotone, so
-    // no candidate skipped here could have won.
+    // Two more bounds, from a candidate already priced on the side that
+    // holds more references. The part of a convex cell below a plane grows
+    // as the plane rises, and so does its surface (each face's clipped area
+    // does), and the part above shrinks. So a candidate beyond a priced one
+    // has p_below at least that one's, and a candidate before it has
+    // p_above at least that one's. With p_below + p_above >= 1, the
+    // weighted count is then at least b nl + (1 - b) nr for p_below >= b
+    // when nl >= nr (may_win_beyond), and (1 - a) nl + a nr for p_above >= a
+    // when nl < nr (may_win_before). 1e-7 of each probability absorbs the
+    // areas' rounding (about 1e-14 of the cell's), and the cost's float
+    // arithmetic is monotone, so no candidate skipped here could have won.
     bool may_win_beyond(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr,
                         double p_below_min) const {
         if (nl < nr) return true;  // the lower bound is nl: may_win's already
         const double b = std::clamp(p_below_min, 0.0, 1.0);
-        constexpr double kMargin = 1e-7;
-        if (cost_.split(cost_.step(kd, n), b - kMargin, nl, 1.0 - b - kMargin, nr) <
-            res.best.cost)
+        return may_win_weighted(res, kd, n, nl, nr, b, 1.0 - b, false, false);
+    }
+    bool may_win_before(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr,
+                        double p_above_min, bool tie_best, bool tie_fb) const {
+        if (nl >= nr) return true;
+        const double a = std::clamp(p_above_min, 0.0, 1.0);
+        return may_win_weighted(res, kd, n, nl, nr, 1.0 - a, a, tie_best, tie_fb);
+    }
+    static constexpr double kAreaMargin = 1e-7;
+    bool may_win_weighted(const SweepResult& res, bool kd, size_t n, uint32_t nl, uint32_t nr,
+                          double pb, double pa, bool tie_best, bool tie_fb) const {
+        const double m = kAreaMargin;
+        if (beats(cost_.split(cost_.step(kd, n), pb - m, nl, pa - m, nr), res.best.cost, tie_best))
             return true;
         return cost_.has_fallback(kd) &&
-               cost_.split(cost_.fallback_step(), b - kMargin, nl, 1.0 - b - kMargin, nr) <
-                   res.fallback.cost;
+               beats(cost_.split(cost_.fallback_step(), pb - m, nl, pa - m, nr), res.fallback.cost,
+                     tie_fb);
     }
+
+    // A candidate position before a sweep's middle, counted and kept to be
+    // priced backwards: nl references below it (those in the plane not
+    // counted), nr above, np in the plane.
+    struct SweepStop {
+        float p;
+        uint32_t nl, nr, np;
+    };
 
     // Per-thread buffers: sweeps run millions of times on small nodes. The
     // thread_local is found once per sweep, through this call kept out of
@@ -351,6 +384,7 @@ private:
     // push_back, 6 % of a build.
     struct SweepScratch {
         std::vector<float> starts, ends, planars;
+        std::vector<SweepStop> stops;
         CellProjection cp;
     };
     [[gnu::noinline]] static SweepScratch& sweep_scratch() {
@@ -359,6 +393,16 @@ private:
     }
 
     // `start`: the costs a candidate must beat (no plane of their own).
+    //
+    // The result is that of pricing every position in order and keeping the
+    // first of the cheapest, but the positions are priced from the middle
+    // outwards, so that both halves have a bound from a priced neighbour
+    // (may_win_before, may_win_beyond). The middle is the first position
+    // with at least as many references below as above. There the positions
+    // before it are priced backwards, each one earlier than every candidate
+    // priced so far, so it wins a tie against the sweep's own best (not
+    // against `start`, which belongs to an earlier direction). The rest are
+    // priced in order.
     SweepResult sweep(const NodeRefs& nr, const Cell& cell, double area, const Vec3& u,
                       const SweepResult& start) const {
         SweepResult res;
@@ -366,10 +410,11 @@ private:
         res.fallback.cost = start.fallback.cost;
         const size_t n = nr.refs.size();
         SweepScratch& scratch = sweep_scratch();
-        auto& [starts, ends, planars, cp] = scratch;
+        auto& [starts, ends, planars, stops, cp] = scratch;
         starts.clear();
         ends.clear();
         planars.clear();
+        stops.clear();
         int axis;
         const bool is_ax = is_axis(u, axis);
         for (const Ref& r : nr.refs) {
@@ -392,9 +437,51 @@ private:
         const double inv_area = 1.0 / area;
         // Few candidates: evaluate the areas directly; many: tabulate once.
         if (2 * n > 2 * cp.breaks_estimate()) cp.tabulate();
+        const bool monotone = cp.areas_monotone();
+        // Whether a plane at p is a candidate at all. On an axis, triangles
+        // lying in the cell's own face (walls, floors) can be cut off into a
+        // flat cell, as in the kd builder.
+        auto at_lo = [&](float p, uint32_t np) {
+            return is_ax && np > 0 && double(p) == clo && chi > clo;
+        };
+        auto at_hi = [&](float p, uint32_t np) {
+            return is_ax && np > 0 && double(p) == chi && chi > clo;
+        };
+
+        // The positions before the middle, kept as they are counted, priced
+        // backwards. Returns p_below of the last position (in order) priced:
+        // a bound for the positions after them.
+        auto price_backwards = [&]() {
+            double p_above_min = 0, p_below_last = 0;
+            bool priced = false;
+            for (size_t i = stops.size(); i-- > 0;) {
+                const SweepStop& st = stops[i];
+                const float p = st.p;
+                const uint32_t nl = st.nl, nr_ = st.nr, np = st.np;
+                bool tie_best = res.best.cost < start.best.cost;
+                bool tie_fb = res.fallback.cost < start.fallback.cost;
+                if (!may_win(res, kd, n, nl, nr_, tie_best, tie_fb)) continue;
+                if (monotone && !may_win_before(res, kd, n, nl, nr_, p_above_min, tie_best, tie_fb))
+                    continue;
+                double below, above;
+                cp.eval(double(p), below, above);
+                p_above_min = above * inv_area;
+                if (!priced) p_below_last = below * inv_area, priced = true;
+                // In order, the plane's references go below first; so last here.
+                if (np && !at_lo(p, np))
+                    offer(res, u, kd, p, false, nl, nr_ + np, below, above, inv_area, n, tie_best,
+                          tie_fb);
+                tie_best = res.best.cost < start.best.cost;
+                tie_fb = res.fallback.cost < start.fallback.cost;
+                if (!at_hi(p, np))
+                    offer(res, u, kd, p, true, nl + np, nr_, below, above, inv_area, n, tie_best,
+                          tie_fb);
+            }
+            return p_below_last;
+        };
 
         uint32_t nl = 0, nr_ = uint32_t(n);
-        const bool monotone = cp.areas_monotone();
+        bool before_middle = true;
         double p_below_min = 0;  // p_below of the last candidate priced
         size_t is = 0, ie = 0, ip = 0;
         while (is < starts.size() || ie < ends.size() || ip < planars.size()) {
@@ -407,22 +494,28 @@ private:
             while (ip < planars.size() && planars[ip] == p) ++np, ++ip;
             while (is < starts.size() && starts[is] == p) ++ns, ++is;
             nr_ -= np + ne;
-            const bool inside = cp.cuts(double(p));
-            // On an axis, triangles lying in the cell's own face (walls,
-            // floors) can be cut off into a flat cell, as in the kd builder.
-            const bool at_lo = is_ax && np > 0 && double(p) == clo && chi > clo;
-            const bool at_hi = is_ax && np > 0 && double(p) == chi && chi > clo;
-            if ((inside || at_lo || at_hi) && may_win(res, kd, n, nl, nr_) &&
-                (!monotone || may_win_beyond(res, kd, n, nl, nr_, p_below_min))) {
-                double below, above;
-                cp.eval(double(p), below, above);
-                p_below_min = below * inv_area;
-                if (!at_hi) offer(res, u, kd, p, true, nl + np, nr_, below, above, inv_area, n);
-                if (np && !at_lo)
-                    offer(res, u, kd, p, false, nl, nr_ + np, below, above, inv_area, n);
+            const bool lo_face = at_lo(p, np), hi_face = at_hi(p, np);
+            if (cp.cuts(double(p)) || lo_face || hi_face) {
+                if (before_middle && nl < nr_) {
+                    stops.push_back({p, nl, nr_, np});
+                } else if (before_middle) {
+                    p_below_min = price_backwards();
+                    before_middle = false;
+                }
+                if (!before_middle && may_win(res, kd, n, nl, nr_) &&
+                    (!monotone || may_win_beyond(res, kd, n, nl, nr_, p_below_min))) {
+                    double below, above;
+                    cp.eval(double(p), below, above);
+                    p_below_min = below * inv_area;
+                    if (!hi_face)
+                        offer(res, u, kd, p, true, nl + np, nr_, below, above, inv_area, n);
+                    if (np && !lo_face)
+                        offer(res, u, kd, p, false, nl, nr_ + np, below, above, inv_area, n);
+                }
             }
             nl += ns + np;
         }
+        if (before_middle) price_backwards();
         return res;
     }
 
