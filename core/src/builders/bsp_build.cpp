@@ -609,7 +609,11 @@ private:
         const Vec3& u = s.dir;
         int axis;
         const bool is_ax = is_axis(u, axis);
-        std::vector<Vec3> below, above;
+        // Per thread: a build splits references at every node. Bound once:
+        // in a shared library each use of a thread_local is a look-up.
+        thread_local std::vector<Vec3> below_buf, above_buf;
+        std::vector<Vec3>& below = below_buf;
+        std::vector<Vec3>& above = above_buf;
         for (const Ref& r : nr.refs) {
             float lo, hi;
             extent(nr, r, u, is_ax, lo, hi);

@@ -37,8 +37,20 @@ Vec3 unit_normal(const Triangle& t) {
 
 std::vector<uint32_t> draw(size_t n, size_t m, Rng& rng) {
     std::vector<uint32_t> picked;
+    picked.reserve(std::min(n, m));
     if (m >= n) {
         for (size_t i = 0; i < n; ++i) picked.push_back(uint32_t(i));
+        return picked;
+    }
+    // A node draws a few directions' triangles (K at most 64): looking them
+    // up among those picked is cheaper than a hash set, made per node. The
+    // draws, and so the picks, are the same either way.
+    constexpr size_t kScanPicks = 64;
+    if (m <= kScanPicks) {
+        while (picked.size() < m) {
+            const uint32_t i = uint32_t(rng.below(n));
+            if (std::find(picked.begin(), picked.end(), i) == picked.end()) picked.push_back(i);
+        }
         return picked;
     }
     std::unordered_set<uint32_t> seen;
@@ -53,20 +65,26 @@ void node_directions(const DirectionStrategy& strategy, const BuildOptions& opt,
                      const std::vector<Triangle>& triangles, const uint32_t* tris, size_t n,
                      Rng& rng, std::vector<Vec3>& out) {
     out.clear();
+    out.reserve(size_t(opt.k) + 3);
     size_t k = size_t(opt.k);
     if (opt.plus_axes) {
-        out = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+        out.push_back({1, 0, 0});
+        out.push_back({0, 1, 0});
+        out.push_back({0, 0, 1});
         k = k > 3 ? k - 3 : 0;
     }
     strategy.directions(NodeTriangles{triangles, tris, n}, k, rng, out);
-    // Equal directions would sweep the same planes twice.
-    std::vector<Vec3> unique;
-    for (const Vec3& d : out) {
+    // Equal directions would sweep the same planes twice: the first of each
+    // is kept, in place.
+    size_t kept = 0;
+    for (size_t i = 0; i < out.size(); ++i) {
+        const Vec3 d = out[i];
         bool seen = false;
-        for (const Vec3& e : unique) seen |= (d.x == e.x && d.y == e.y && d.z == e.z);
-        if (!seen) unique.push_back(d);
+        for (size_t j = 0; j < kept; ++j)
+            seen |= (d.x == out[j].x && d.y == out[j].y && d.z == out[j].z);
+        if (!seen) out[kept++] = d;
     }
-    out.swap(unique);
+    out.resize(kept);
 }
 
 }  // namespace bsp
