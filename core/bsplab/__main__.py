@@ -140,15 +140,20 @@ def _write_page(text: str, out: Path | None) -> None:
 
 def cmd_build_bench(args) -> int:
     from bsplab.lab import build_bench
+    from bsplab.cpu import cpu_features
+    from bsplab.lab.store import load_average, machine_info
     out = output_file(args.out, "--out", "build_benchmark.md") if args.out else None
+    machine = {**machine_info(), "isa": cpu_features()["supported"][-1],
+               "started": time.strftime("%Y-%m-%d %H:%M:%S"), "load_start": load_average()}
     rows = build_bench.bench_build(args.scenes, rounds=args.repeats, threads=args.threads,
                                    sweeps=args.sweeps,
                                    side=build_bench.DEFAULT_SIDE if args.side is None else args.side)
+    machine["load_end"] = load_average()
     if not rows:
         raise ValueError(f"none of the scenes ({', '.join(args.scenes or build_bench.DEFAULT_SCENES)}) "
                          f"is here (the shared scenes folder: {build_bench.shared_folder()}); "
                          "name generated scenes or mesh files with --scenes")
-    text = build_bench.build_markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]))
+    text = build_bench.build_markdown(rows, "python -m bsplab " + " ".join(sys.argv[1:]), machine)
     _write_page(text, out)
     return 0
 

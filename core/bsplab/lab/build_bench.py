@@ -156,7 +156,21 @@ def shared_folder() -> str:
     return str(shared_scenes_dir() or "not found")
 
 
-def build_markdown(rows: list[dict], command: str) -> str:
+def machine_line(machine: dict) -> str:
+    """Where the times were taken: the ratios to Embree's build move with the
+    host (Embree picks its build kernels for the CPU at run time; the lab's
+    builders are compiled once, for any x86-64)."""
+    load = ""
+    if machine.get("load_start") and machine.get("load_end"):
+        load = (f"; load average (1/5/15 min) {' / '.join(map(str, machine['load_start']))} "
+                f"at the start, {' / '.join(map(str, machine['load_end']))} at the end")
+    return (f"Machine: {machine.get('cpu', '?')}, {machine.get('cores', '?')} cores, widest "
+            f"instruction set {machine.get('isa', '?')}; started {machine.get('started', '?')}"
+            f"{load}. Embree picks its build kernels for the CPU at run time and the lab's "
+            "builders are compiled for any x86-64, so the ratios to Embree move with the host.")
+
+
+def build_markdown(rows: list[dict], command: str, machine: dict | None = None) -> str:
     threads = rows[0]["threads"] if rows else 0
     # The BSP columns when every row has them (rows of one run all do).
     sweeps = bool(rows) and all("wn8_s" in r for r in rows)
@@ -167,6 +181,7 @@ def build_markdown(rows: list[dict], command: str) -> str:
         f"Build times (median of {rows[0]['rounds'] if rows else 0} paired rounds, {n} threads "
         f"unless said; \"/ kd\" is over the exact kd build on {n} threads; `{command}`):",
         "",
+        *([machine_line(machine), ""] if machine else []),
         f"| scene | triangles | Embree | kd exact, 1 thread | kd exact | kd fast | "
         f"kd 1 / Embree | kd exact / Embree | kd fast / Embree | kd SAH exact | kd SAH fast | "
         f"BVH | BVH / Embree |" + extra_head,

@@ -73,6 +73,15 @@ def test_markdown_has_a_row_per_scene():
     assert len(lines) == 3  # the header and one row per scene; no quality rows given
     assert ("| a | 1,000 | 0.050 s | 0.200 s | 0.100 s | 0.030 s | 4.00× | 2.00× | 0.60× | "
             "12.50 | 12.75 | 0.040 s | 0.80× |") in lines
+    assert "Machine:" not in text
+    # The host goes on the page when given: the ratios to Embree depend on it.
+    machine = {"cpu": "Some CPU", "cores": 2, "isa": "avx512", "started": "2026-12-05 21:00:00",
+               "load_start": [0.1, 0.2, 0.3], "load_end": [1.5, 1.0, 0.5]}
+    text = build_bench.build_markdown(rows, "cmd", machine)
+    line = next(x for x in text.splitlines() if x.startswith("Machine:"))
+    assert "Some CPU, 2 cores, widest instruction set avx512" in line
+    assert "started 2026-12-05 21:00:00" in line and "0.1 / 0.2 / 0.3 at the start" in line
+    assert [x for x in text.splitlines() if x.startswith("| ")] == lines
     assert "kd fast / Embree" in lines[0]
 
 
