@@ -6,6 +6,7 @@
 #include "builders/bsp_build.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <future>
 #include <memory>
@@ -777,7 +778,13 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
     };
 
     const double inv_area = 1.0 / area;
-    CellProjection cp;  // re-projected per plane, its arrays kept
+    CellProjection cp;  // re-projected per direction, its arrays kept
+    // The direction cp sees the cell along: a triangle's own plane is tried
+    // at both ends of its extent, and neighbouring triangles (a quad's two,
+    // a wall's) share a normal, so consecutive planes often need the same
+    // projection.
+    Vec3 projected;
+    bool has_projection = false;
     auto try_plane = [&](const Vec3& u, float d) {
         int axis;
         const bool is_ax = is_axis(u, axis);
@@ -789,7 +796,14 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         if (!may_win(res, kd, n, l + pc.planar, r) &&
             !(pc.planar && may_win(res, kd, n, l, r + pc.planar)))
             return;
-        cp.project(cell, Vec3d(u));
+        // Bit for bit: a canonical normal's zero components can be -0.
+        auto bits = [](float x) { return std::bit_cast<uint32_t>(x); };
+        if (!has_projection || bits(u.x) != bits(projected.x) || bits(u.y) != bits(projected.y) ||
+            bits(u.z) != bits(projected.z)) {
+            cp.project(cell, Vec3d(u));
+            projected = u;
+            has_projection = true;
+        }
         if (!cp.cuts(double(d))) return;
         double below, above;
         cp.areas_at(double(d), below, above);
