@@ -65,23 +65,9 @@ constexpr size_t kBinChunk = 16384;
 // would overflow it is counted reference by reference instead.
 constexpr int kRefBvhStack = 128;
 
-// BSP_IZE's per-node BVH over the references. A node keeps its box as the
-// centre and half-extent in double that every plane's count projects: made
-// once per node, not once per plane and visit.
-struct RefBvh {
-    struct Node {
-        Vec3d centre, half;
-        uint32_t begin, end;  // range in order[]
-        uint32_t child = 0;   // first child index (0: leaf)
-    };
-    std::vector<Node> nodes;
-    std::vector<uint32_t> order;
-};
-
 // BSP_IZE's per-node BVH over the references: a box, a centre, an order slot
 // and about half a BVH node per reference.
-constexpr uint64_t kIzeBytesPerRef =
-    sizeof(Box) + sizeof(Vec3) + sizeof(uint32_t) + sizeof(RefBvh::Node) / 2;
+constexpr uint64_t kIzeBytesPerRef = 2 * sizeof(Box) + sizeof(Vec3) + sizeof(uint32_t);
 
 class BspBuilder : BuilderBase {
 public:
@@ -693,6 +679,16 @@ private:
 // ---- BSP_IZE ---------------------------------------------------------------
 
 // A small BVH over the node's references: boxes of their clipped polygons.
+struct RefBvh {
+    struct Node {
+        Box box;
+        uint32_t begin, end;  // range in order[]
+        uint32_t child = 0;   // first child index (0: leaf)
+    };
+    std::vector<Node> nodes;
+    std::vector<uint32_t> order;
+};
+
 // Counts, for the plane u.x = d: references only below, only above, crossing,
 // and lying exactly in it - with the classification split_refs() applies.
 struct PlaneCount {
@@ -717,7 +713,7 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
     RefBvh bvh;
     bvh.order.resize(n);
     for (size_t i = 0; i < n; ++i) bvh.order[i] = uint32_t(i);
-    bvh.nodes.push_back({Vec3d(), Vec3d(), 0, uint32_t(n)});
+    bvh.nodes.push_back({Box(), 0, uint32_t(n)});
     for (size_t k = 0; k < bvh.nodes.size(); ++k) {
         RefBvh::Node& node = bvh.nodes[k];
         Box b, cb;
@@ -725,8 +721,7 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
             b.extend(boxes[bvh.order[i]]);
             cb.extend(centre[bvh.order[i]]);
         }
-        node.centre = Vec3d(Vec3((b.lo + b.hi) * 0.5f));
-        node.half = Vec3d(Vec3((b.hi - b.lo) * 0.5f));
+        bvh.nodes[k].box = b;
         if (node.end - node.begin <= 4) continue;
         const Vec3 ext = cb.hi - cb.lo;
         const int axis = ext.x > ext.y ? (ext.x > ext.z ? 0 : 2) : (ext.y > ext.z ? 1 : 2);
@@ -737,8 +732,8 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
                          });
         const uint32_t begin = node.begin, end = node.end;
         bvh.nodes[k].child = uint32_t(bvh.nodes.size());
-        bvh.nodes.push_back({Vec3d(), Vec3d(), begin, mid});
-        bvh.nodes.push_back({Vec3d(), Vec3d(), mid, end});
+        bvh.nodes.push_back({Box(), begin, mid});
+        bvh.nodes.push_back({Box(), mid, end});
     }
 
     auto count = [&](const Vec3& u, bool is_ax, float d) {
@@ -752,8 +747,8 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         stack[top++] = 0;
         while (top) {
             const RefBvh::Node& node = bvh.nodes[stack[--top]];
-            const Vec3d& c = node.centre;
-            const Vec3d& e = node.half;
+            const Vec3d c(Vec3((node.box.lo + node.box.hi) * 0.5f));
+            const Vec3d e(Vec3((node.box.hi - node.box.lo) * 0.5f));
             const double mid = dot(ud, c);
             const double rad = std::fabs(ud.x) * e.x + std::fabs(ud.y) * e.y + std::fabs(ud.z) * e.z;
             const double margin = 1e-5 * (std::fabs(mid) + rad) + 2.0 * eps_ + 1e-30;
