@@ -162,6 +162,12 @@ std::vector<OptionSpec> make_option_specs() {
          .label = "Fast Split Gain", .short_label = "Min Gain",
          .help = "Fast builds: a node splits only if that saves at least this share of its "
                  "leaf's cost (0: wherever it saves anything, as exact builds do)"},
+        {NUMBER_FIELD(fast_clip_min_refs), .type = T::Int, .group = "bsp",
+         .default_value = whole(kFastClipMinRefs), .min = whole(0), .max = whole(INT32_MAX),
+         .soft_max = 256, .label = "Fast Clip Size", .short_label = "Clip From",
+         .help = "Fast kd builds: a split whose children hold fewer references cuts the boxes "
+                 "of the triangles it crosses at the plane instead of clipping the triangles "
+                 "(0: clip everywhere, as exact builds do)"},
         // The BSP family. K's limits here are the widest; a method narrows
         // them (MethodSpec::min_k, max_k).
         {NUMBER_FIELD(k), .type = T::Int, .group = "bsp", .default_value = whole(6),
@@ -261,7 +267,7 @@ std::vector<MethodSpec> make_method_specs() {
     m.push_back({"kd", "kd (SAH)",
                  "Axis-aligned kd-tree, SAH with perfect splits, O(N log N) build "
                  "(Wald & Havran 2006).",
-                 kKdBuilder, "axes", false, false, kQuality});
+                 kKdBuilder, "axes", false, false, kQuality + Options{"fast_clip_min_refs"}});
     m.push_back({"rbsp", "RBSP",
                  "Restricted BSP: one fixed set of K directions (k-DOP for K = 3, 7, 9, 13, "
                  "else the three axes plus K - 3 golden-spiral points) at every node.",

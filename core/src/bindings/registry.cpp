@@ -125,7 +125,8 @@ void bind_registry(nb::module_& m) {
         .def_rw("build_quality", &BuildOptions::build_quality)
         .def_rw("fast_bins", &BuildOptions::fast_bins)
         .def_rw("fast_min_refs", &BuildOptions::fast_min_refs)
-        .def_rw("fast_min_gain", &BuildOptions::fast_min_gain);
+        .def_rw("fast_min_gain", &BuildOptions::fast_min_gain)
+        .def_rw("fast_clip_min_refs", &BuildOptions::fast_clip_min_refs);
 
     m.def("registry", &registry, "The methods, options and strategies of registry.hpp.");
     m.def(

@@ -440,12 +440,32 @@ private:
                          straddling.end());
     }
 
-    // The clipped events of the straddling triangles on either side, sorted.
-    void clip_straddling(const Split& s, const Box& lbox, const Box& rbox,
-                         TaskScratch& scratch) const {
+    // A fast build cuts a straddling triangle's box at the plane instead of
+    // clipping the triangle where the children hold fewer than
+    // fast_clip_min_refs references (tree.hpp, kFastClipMinRefs).
+    bool cuts_boxes(const Split& s) const {
+        return opt_.build_quality == BuildQuality::Fast &&
+               uint64_t(s.n_left) + s.n_right < uint64_t(std::max(opt_.fast_clip_min_refs, 0));
+    }
+
+    // The straddling triangles' new events on either side: the bounds of
+    // each half of the triangle clipped to the cell, or, where the node cuts
+    // boxes, only an end (left) and a start (right) at the plane; their old
+    // events stay (split_axis) and bound the halves with the node's box of
+    // the triangle. Cutting costs no clip, no sort and no merge along the
+    // other two axes; the halves' boxes are looser (docs/build_quality.md).
+    void straddling_events(const Split& s, const Box& lbox, const Box& rbox, bool cut_boxes,
+                           TaskScratch& scratch) const {
         for (int k = 0; k < 3; ++k) {
             scratch.new_left[k].clear();
             scratch.new_right[k].clear();
+        }
+        if (cut_boxes) {
+            for (uint32_t t : scratch.straddling) {
+                scratch.new_left[s.axis].push_back({s.pos, t << 2 | kEnd});
+                scratch.new_right[s.axis].push_back({s.pos, t << 2 | kStart});
+            }
+            return;
         }
         Box parent = lbox;
         parent.hi[s.axis] = rbox.hi[s.axis];
@@ -463,7 +483,8 @@ private:
     }
 
     // Splits the node's sorted events along axis k into the children's
-    // sorted events in one pass: the left ones move down in place (the left
+    // sorted events in one pass (cut_axis: the split's axis where the node
+    // cuts boxes, else -1): the left ones move down in place (the left
     // child's list overwrites the node's own, which is never read again),
     // the right ones go to `right_room` on top of the stack. Then each side
     // takes in the straddling triangles' new events by a merge from the back,
@@ -472,7 +493,7 @@ private:
     // of its own), except that a rounded, inverted clipped box can add one:
     // then it returns false, the left's own events at the front of the
     // node's list, and move_left finishes it.
-    bool split_axis(NodeEvents& ev, int k, TaskScratch& scratch, Event* right_room,
+    bool split_axis(NodeEvents& ev, int k, int cut_axis, TaskScratch& scratch, Event* right_room,
                     NodeEvents& left, NodeEvents& right, size_t& nl) const {
         EventList& new_left = scratch.new_left[k];
         EventList& new_right = scratch.new_right[k];
@@ -484,20 +505,38 @@ private:
         Event* r = right_room;
         static_assert(kLeftOnly == 1 && kRightOnly == 2 && kBoth == 0);
         static_assert(sizeof(Event) == 8 && offsetof(Event, key) == 4);
-        for (const Event& e : in) {
-            // Branch-free: both are written, one pointer moves. The slot at
-            // l is the one just read or an earlier one (l never passes the
-            // reader), and the one at r is free room. The side's two bits
-            // are the steps themselves: compares here became a branch,
-            // mispredicted on every axis but the split's.
-            // The event moves as one 8-byte word (pos low, key high).
-            uint64_t word;
-            std::memcpy(&word, &e, sizeof word);
-            const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;  // key >> 2
-            std::memcpy(l, &word, sizeof word);
-            std::memcpy(r, &word, sizeof word);
-            l += sd & 1u;
-            r += sd >> 1;
+        if (cut_axis < 0) {
+            for (const Event& e : in) {
+                // Branch-free: both are written, one pointer moves. The slot
+                // at l is the one just read or an earlier one (l never passes
+                // the reader), and the one at r is free room. The side's two
+                // bits are the steps themselves: compares here became a
+                // branch, mispredicted on every axis but the split's.
+                // The event moves as one 8-byte word (pos low, key high).
+                uint64_t word;
+                std::memcpy(&word, &e, sizeof word);
+                const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;  // key >> 2
+                std::memcpy(l, &word, sizeof word);
+                std::memcpy(r, &word, sizeof word);
+                l += sd & 1u;
+                r += sd >> 1;
+            }
+        } else {
+            // Cut boxes: a straddling triangle's events go to both sides,
+            // except along the split axis, where its start goes left and its
+            // end right (straddling_events closes each half at the plane).
+            const uint32_t other_axis = k != cut_axis;
+            for (const Event& e : in) {
+                uint64_t word;
+                std::memcpy(&word, &e, sizeof word);
+                const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;
+                const uint32_t start = ((word >> 32) & 3u) == kStart;
+                const uint32_t both = sd == kBoth;
+                std::memcpy(l, &word, sizeof word);
+                std::memcpy(r, &word, sizeof word);
+                l += (sd & 1u) | (both & (start | other_axis));
+                r += (sd >> 1) | (both & ((start ^ 1u) | other_axis));
+            }
         }
         nl = size_t(l - in.data);
         const size_t nr = size_t(r - right_room);
@@ -533,7 +572,9 @@ private:
     void split_events(NodeEvents& ev, const Split& s, const Box& lbox, const Box& rbox,
                       TaskScratch& scratch, TaskCredit& credit, int depth, NodeEvents& left,
                       NodeEvents& right) const {
-        clip_straddling(s, lbox, rbox, scratch);
+        const bool cut_boxes = cuts_boxes(s);
+        straddling_events(s, lbox, rbox, cut_boxes, scratch);
+        const int cut_axis = cut_boxes ? s.axis : -1;
         left.count = s.n_left;
         right.count = s.n_right;
         // The right side needs at most the node's events plus the new ones.
@@ -545,7 +586,7 @@ private:
             // into room taken beforehand (the stack is not shared by threads).
             Event* r[3];
             for (int k = 0; k < 3; ++k) r[k] = scratch.stack.push(room(k), credit, depth);
-            auto task = [&](int k) { fits[k] = split_axis(ev, k, scratch, r[k], left, right, nl[k]); };
+            auto task = [&](int k) { fits[k] = split_axis(ev, k, cut_axis, scratch, r[k], left, right, nl[k]); };
             auto a1 = std::async(std::launch::async, task, 1);
             auto a2 = std::async(std::launch::async, task, 2);
             task(0);
@@ -556,7 +597,7 @@ private:
         } else {
             for (int k = 0; k < 3; ++k) {
                 Event* r = scratch.stack.push(room(k), credit, depth);
-                fits[k] = split_axis(ev, k, scratch, r, left, right, nl[k]);
+                fits[k] = split_axis(ev, k, cut_axis, scratch, r, left, right, nl[k]);
                 scratch.stack.shrink_last(r, right.axis[k].size);
                 if (!fits[k]) move_left(ev, k, nl[k], scratch, left, credit, depth);
             }

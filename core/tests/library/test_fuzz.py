@@ -155,6 +155,29 @@ def test_fast_trees_agree_with_embree_on_random_scenes(case):
     check_spec(case)
 
 
+# Fast kd builds that cut straddling triangles' boxes at the plane instead
+# of clipping the triangles (fast_clip_min_refs), from a few nodes at the
+# bottom to every split, with and without binned nodes above.
+cut_specs = st.fixed_dictionaries({
+    "parts": st.lists(part(), min_size=1, max_size=5),
+    "scale_exp": st.integers(-3, 3),
+    "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
+    "method": st.just("kd"),
+    "k": st.just(3),
+    "options": st.fixed_dictionaries({"build_quality": st.just("fast"),
+                                      "fast_min_refs": st.sampled_from([8, 64, 1 << 20]),
+                                      "fast_clip_min_refs": st.sampled_from([4, 12, 1 << 20]),
+                                      "leaf_boxes": st.sampled_from(["triangle", "clipped"])}),
+})
+
+
+@settings(max_examples=examples(40), deadline=None, derandomize=not LONG,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(cut_specs)
+def test_fast_kd_trees_that_cut_boxes_agree_with_embree_on_random_scenes(case):
+    check_spec(case)
+
+
 def regressions() -> list[dict]:
     return json.loads(REGRESSIONS.read_text()) if REGRESSIONS.exists() else []
 

@@ -1,7 +1,9 @@
 """The kd builder's fast builds (build_quality="fast", issue 25): nodes of at
 least fast_min_refs references choose among fast_bins binned planes per
-axis, smaller ones sweep exactly, and a split is made only where it saves
-fast_min_gain of the leaf's cost. The trees differ from the exact ones but
+axis, smaller ones sweep exactly, a split is made only where it saves
+fast_min_gain of the leaf's cost, and a split into fewer than
+fast_clip_min_refs references cuts the boxes of the triangles it crosses
+instead of clipping the triangles. The trees differ from the exact ones but
 must hit what Embree hits, be the same whatever the thread count, cost
 little more (SAH), and keep progress, cancellation and the memory limit.
 
@@ -32,11 +34,18 @@ def test_fast_trees_differ_from_exact_ones(fan):
     fast = bsplab.build(fan, "kd", **LOW)
     assert fast.stats["build_quality"] == "fast"
     assert exact.node_bytes() != fast.node_bytes()
-    # Below fast_min_refs nothing is binned, and with no minimum gain every
-    # split the exact build makes is made: the exact tree.
+    # Below fast_min_refs nothing is binned, with no minimum gain every
+    # split the exact build makes is made,
+    # and with every straddling triangle clipped, the exact tree.
     whole = bsplab.build(fan, "kd", build_quality="fast", fast_min_refs=len(fan) + 1,
-                         fast_min_gain=0)
+                         fast_min_gain=0, fast_clip_min_refs=0)
     assert whole.node_bytes() == exact.node_bytes()
+    # The default cuts the boxes of the triangles that the splits into
+    # fewer than 12 references cross instead of clipping them.
+    cut = bsplab.build(fan, "kd", build_quality="fast", fast_min_refs=len(fan) + 1,
+                       fast_min_gain=0)
+    assert cut.stats["option_fast_clip_min_refs"] == 12
+    assert cut.node_bytes() != exact.node_bytes()
     # The default minimum gain leaves out splits the exact build makes.
     gain = bsplab.build(fan, "kd", build_quality="fast", fast_min_refs=len(fan) + 1)
     assert gain.stats["interior_nodes"] < exact.stats["interior_nodes"]
@@ -68,9 +77,14 @@ def family_rays(scene: str) -> agreement.FamilyRays:
     return _rays[scene]
 
 
+# Cutting boxes everywhere (no triangle clipped below the binned nodes)
+# leaves each straddling triangle its node's box along the other axes.
+CUT_ALL = {"build_quality": "fast", "fast_clip_min_refs": 1 << 30}
 OPTION_SETS = {"bins32": LOW,
                "bins7": {"build_quality": "fast", "fast_min_refs": 256, "fast_bins": 7},
-               "clipped": {**LOW, "leaf_boxes": "clipped"}}
+               "clipped": {**LOW, "leaf_boxes": "clipped"},
+               "cut_all": CUT_ALL,
+               "cut_all_clipped": {**CUT_ALL, "leaf_boxes": "clipped"}}
 CASES = [(scene, opts) for scene in ("room", "grids", "tilted") for opts in OPTION_SETS]
 
 
@@ -83,6 +97,20 @@ def test_fast_trees_hit_what_embree_hits(scene, options):
         assert len(c["leaks"]) == 0, (scene, name, c["leaks"][:4])
     for name, c in rays.check(tree, cull=False, counters=False).items():
         assert len(c["unexplained"]) == 0 and len(c["leaks"]) == 0, (scene, name, "hits-only")
+
+
+def test_cut_boxes_leave_triangles_their_node_box():
+    # A thin diagonal strip: clipped at each split, its halves' boxes shrink
+    # along all three axes; cut, only along the split's axis. So cutting
+    # everywhere makes more references and a costlier tree than clipping
+    # everywhere, and the default (cutting only small splits) lies between.
+    tris = scenes.generate("tilted")
+    clip = bsplab.build(tris, "kd", build_quality="fast", fast_clip_min_refs=0).stats
+    cut = bsplab.build(tris, "kd", **CUT_ALL).stats
+    default = bsplab.build(tris, "kd", build_quality="fast").stats
+    assert cut["sah_cost"] > clip["sah_cost"], (cut["sah_cost"], clip["sah_cost"])
+    assert default["sah_cost"] <= cut["sah_cost"]
+    assert abs(default["sah_cost"] / clip["sah_cost"] - 1) < 0.03
 
 
 def test_fast_trees_do_not_depend_on_the_thread_count():
@@ -108,7 +136,10 @@ def test_fast_sah_is_close_to_exact():
                                          ("fast_min_refs", -4), ("fast_min_refs", 2**31),
                                          ("fast_min_gain", -0.1), ("fast_min_gain", 0.95),
                                          ("fast_min_gain", float("nan")),
-                                         ("fast_min_gain", "high")])
+                                         ("fast_min_gain", "high"),
+                                         ("fast_clip_min_refs", -1),
+                                         ("fast_clip_min_refs", 2**31),
+                                         ("fast_clip_min_refs", 2.5)])
 def test_bad_fast_options_are_refused(fan, name, value):
     with pytest.raises((ValueError, TypeError)):
         bsplab.build(fan, "kd", build_quality="fast", **{name: value})
