@@ -35,8 +35,8 @@ def test_fast_trees_differ_from_exact_ones(fan):
     assert fast.stats["build_quality"] == "fast"
     assert exact.node_bytes() != fast.node_bytes()
     # Below fast_min_refs nothing is binned, with no minimum gain every
-    # split the exact build makes is made,
-    # and with every straddling triangle clipped, the exact tree.
+    # split the exact build makes is made, and with every straddling
+    # triangle clipped: the exact tree.
     whole = bsplab.build(fan, "kd", build_quality="fast", fast_min_refs=len(fan) + 1,
                          fast_min_gain=0, fast_clip_min_refs=0)
     assert whole.node_bytes() == exact.node_bytes()
@@ -100,10 +100,11 @@ def test_fast_trees_hit_what_embree_hits(scene, options):
 
 
 def test_cut_boxes_leave_triangles_their_node_box():
-    # A thin diagonal strip: clipped at each split, its halves' boxes shrink
-    # along all three axes; cut, only along the split's axis. So cutting
-    # everywhere makes more references and a costlier tree than clipping
-    # everywhere, and the default (cutting only small splits) lies between.
+    # Boxes rotated about oblique axes and a tilted plane: a clipped half of
+    # a tilted triangle has a smaller box along all three axes, a cut one
+    # only along the split's axis. So cutting everywhere makes a costlier
+    # tree than clipping everywhere, and the default (cutting only small
+    # splits) lies between.
     tris = scenes.generate("tilted")
     clip = bsplab.build(tris, "kd", build_quality="fast", fast_clip_min_refs=0).stats
     cut = bsplab.build(tris, "kd", **CUT_ALL).stats
