@@ -84,7 +84,11 @@ struct Split {
 // Nodes with more triangles than this split their three axes in parallel.
 constexpr uint32_t kParallelAxes = 1u << 16;
 
-enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2 };
+// kCut: a straddling triangle whose box a fast build cuts at the plane
+// (straddling_events): along the other two axes its events go to both
+// sides, which the side bits say as they are; along the split axis its
+// start goes left and its end right.
+enum Side : uint8_t { kBoth = 0, kLeftOnly = 1, kRightOnly = 2, kCut = 3 };
 
 // A build task's working memory, reused from node to node.
 struct TaskScratch {
@@ -461,7 +465,9 @@ private:
             scratch.new_right[k].clear();
         }
         if (cut_boxes) {
+            uint16_t* marks = scratch.marks.data();
             for (uint32_t t : scratch.straddling) {
+                marks[t] |= kCut;
                 scratch.new_left[s.axis].push_back({s.pos, t << 2 | kEnd});
                 scratch.new_right[s.axis].push_back({s.pos, t << 2 | kStart});
             }
@@ -503,16 +509,17 @@ private:
         const uint16_t* marks = scratch.marks.data();
         Event* l = in.data;
         Event* r = right_room;
-        static_assert(kLeftOnly == 1 && kRightOnly == 2 && kBoth == 0);
+        static_assert(kLeftOnly == 1 && kRightOnly == 2 && kBoth == 0 && kCut == 3);
         static_assert(sizeof(Event) == 8 && offsetof(Event, key) == 4);
-        if (cut_axis < 0) {
+        if (k != cut_axis) {
             for (const Event& e : in) {
-                // Branch-free: both are written, one pointer moves. The slot
-                // at l is the one just read or an earlier one (l never passes
-                // the reader), and the one at r is free room. The side's two
-                // bits are the steps themselves: compares here became a
-                // branch, mispredicted on every axis but the split's.
-                // The event moves as one 8-byte word (pos low, key high).
+                // Branch-free: both are written, one pointer moves (both for
+                // a cut triangle). The slot at l is the one just read or an
+                // earlier one (l never passes the reader), and the one at r
+                // is free room. The side's two bits are the steps themselves:
+                // compares here became a branch, mispredicted on every axis
+                // but the split's. The event moves as one 8-byte word (pos
+                // low, key high).
                 uint64_t word;
                 std::memcpy(&word, &e, sizeof word);
                 const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;  // key >> 2
@@ -522,22 +529,20 @@ private:
                 r += sd >> 1;
             }
         } else {
-            // Cut boxes: a straddling triangle's events go to both sides,
-            // except along the split axis, where its start goes left and its
-            // end right (straddling_events closes each half at the plane).
-            // A loop of its own, so that the exact loop above, the hot one
-            // of every exact build, keeps its four steps per event.
-            const uint32_t other_axis = k != cut_axis;
+            // The split axis of a node that cuts boxes: a cut triangle's
+            // start goes left and its end right (straddling_events closes
+            // each half at the plane). A loop of its own, so that the one
+            // above, the hot one of every build, keeps its four steps.
             for (const Event& e : in) {
                 uint64_t word;
                 std::memcpy(&word, &e, sizeof word);
                 const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;
                 const uint32_t start = ((word >> 32) & 3u) == kStart;
-                const uint32_t both = sd == kBoth;
+                const uint32_t whole = sd != kCut;
                 std::memcpy(l, &word, sizeof word);
                 std::memcpy(r, &word, sizeof word);
-                l += (sd & 1u) | (both & (start | other_axis));
-                r += (sd >> 1) | (both & ((start ^ 1u) | other_axis));
+                l += (sd & 1u) & (start | whole);
+                r += (sd >> 1) & ((start ^ 1u) | whole);
             }
         }
         nl = size_t(l - in.data);
