@@ -84,7 +84,7 @@ bench-family: core
 bench-cull: core
 	$(BIN)/python -m bsplab bench-cull --out docs/cull_benchmark.md
 
-# docs/results.md and docs/results_plots/ from scratch (20-30 min on 2 cores).
+# docs/results.md and docs/results_plots/ from scratch (about 10 min on 2 cores).
 results: core
 	$(BIN)/python -m bsplab results
 
