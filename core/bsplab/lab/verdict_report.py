@@ -62,7 +62,8 @@ def general_step_table(record: dict) -> list[str]:
                      _span(paired_ratio(w, "axes general", "axes kd", "counting")),
                      _span(paired_ratio(w, "axes general", "axes kd", "hits_only")),
                      f"{np.median(extra[1]):.2f}"])
-    return _table(["scene", "rays", "steps/ray (interior)", "tests/ray", "steps / tests, general over kd nodes (%)",
+    return _table(["scene", "rays", "steps/ray (interior)", "tests/ray",
+                   "steps / tests, general over kd nodes (%)",
                    "time general ÷ kd nodes, counting % (min–max)", "hits-only %",
                    "extra ns per interior step (hits-only)"], rows)
 
