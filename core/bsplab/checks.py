@@ -205,6 +205,21 @@ def trace_flags(cull, counters, packets) -> tuple[bool, bool, bool]:
     return bool(cull), bool(counters), bool(packets)
 
 
+# Tree.intersect's ray_order: how the hits-only path of a kd or BSP tree
+# orders a batch (core: RayOrder in trace/traverse.hpp). "spatial" traces an
+# incoherent batch sorted by the rays' origins and directions, "given" in
+# the caller's order; the hits are the same.
+RAY_ORDERS = ("spatial", "given")
+
+
+def ray_order(value) -> bool:
+    """True when the rays keep the given order."""
+    if value not in RAY_ORDERS:
+        raise ValueError(f"ray_order must be one of {', '.join(map(repr, RAY_ORDERS))}, "
+                         f"got {value!r}")
+    return value == "given"
+
+
 def threads(value) -> int:
     from .method_table import OPTIONS
     return option(OPTIONS["threads"], value, None)

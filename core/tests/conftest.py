@@ -62,7 +62,8 @@ SLOW_ON_SCENES = {
 
 # The files whose fast part the sanitizer run keeps: those that drive the
 # core's C++ (every builder, every kernel and path, culling, the in-plane
-# walk, instancing, inspection, input checks, the fuzzer) on small scenes.
+# walk, instancing, inspection, input checks, the ray order, the fuzzer) on
+# small scenes.
 # The others re-trace the same kernels on many more rays (test_agreement,
 # test_ray_families, test_paths_agree, test_edge_robustness) or do their
 # work in Python (the oracle's checks, the lab's bookkeeping, PLY files and
@@ -74,8 +75,8 @@ SANITIZER_FILES = {
     "test_camera.py", "test_culling.py", "test_degenerate_warnings.py", "test_fuzz.py",
     "test_hits_only.py", "test_in_plane_walk.py", "test_instanced.py", "test_isa_levels.py",
     "test_kd_fast.py", "test_kd_only_traversal.py", "test_kd_tree.py", "test_leaf_simd.py",
-    "test_memory_limit.py", "test_packets.py", "test_registry.py", "test_render_progress.py",
-    "test_sweep_fast.py", "test_tree_geometry.py",
+    "test_memory_limit.py", "test_packets.py", "test_ray_order.py", "test_registry.py",
+    "test_render_progress.py", "test_sweep_fast.py", "test_tree_geometry.py",
 }
 
 # Also slow under the sanitizers (core/tools/sanitize.sh sets
@@ -88,6 +89,7 @@ SANITIZER_SLOW_ON_PARAMS = {
     "test_tree_geometry.py::test_cells_of_a_level_tile_the_root_box": ("None-",),
 }
 SANITIZER_SLOW_TESTS = {
+    "test_ray_order.py::test_a_batch_of_two_windows_comes_back_in_the_callers_order",
     "test_lab.py::test_bench_cull_pairs_culling_on_with_off",
     "test_lab.py::test_bench_writes_a_row_per_scene_and_method",
 }

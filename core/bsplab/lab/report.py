@@ -451,6 +451,14 @@ SIDE_BY_SIDE = ("The three structures on one kernel against Embree: kd, the fast
                 "`docs/verdict.md` splits the gap into structure and kernel.")
 
 
+GIVEN_ORDER = ("The kd and BSP trees' hits-only path traces a batch of incoherent rays "
+               "sorted by their origins and directions (`ray_order=\"spatial\"`, the "
+               "default; core/src/trace/ray_order.hpp), then returns the hits in the "
+               "caller's order; Embree traces the rays as given. `kd × Embree speed, "
+               "given order` is kd's hits-only path on the same rays kept in the given "
+               "order (`ray_order=\"given\"`), timed in the same rounds.")
+
+
 def _speed(g: Group, column: str) -> float | None:
     x = g.per_round("embree_s", column)
     return None if x is None else float(np.median(x))
@@ -472,6 +480,10 @@ def side_by_side_table(res: Results, w: str, explain: bool = True) -> list[str]:
     no BVH or no kd."""
     column = next((c for c, _ in TRACE_PATHS
                    if any(r.get(c) for g in res.groups.values() for r in g.rows)), "trace_s")
+    # Random rays are also timed in the caller's order (tracers.py): kd's
+    # speed then shows beside the spatial order's.
+    given = any(r.get("given_order_s") for g in res.groups.values() if g.workload == w
+                for r in g.rows)
     out = []
     for scene in res.scenes:
         kd, bvh = res.kd(scene, w), res.get(scene, w, "bvh", None)
@@ -483,6 +495,8 @@ def side_by_side_table(res: Results, w: str, explain: bool = True) -> list[str]:
         fields = [scene_label(scene), f"{kd.triangles:,}", _f(_mrays(kd, "embree_s"), "{:.2f}")]
         for g in (kd, best_g, bvh):
             fields.append("—" if g is None else _f(_speed(g, column), "{:.2f}"))
+        if given:
+            fields.insert(4, _f(_speed(kd, "given_order_s"), "{:.2f}"))
         fields += [_f(_time_ratio(kd, bvh, column), "{:.2f}"),
                    "—" if best_g is None else f"{best_g.method} {best_g.k}: "
                    + _f(_time_ratio(best_g, bvh, column), "{:.2f}")]
@@ -496,12 +510,16 @@ def side_by_side_table(res: Results, w: str, explain: bool = True) -> list[str]:
     if not out:
         return []
     label = dict(TRACE_PATHS).get(column, column)
+    given_head = " kd × Embree speed, given order |" if given else ""
     return (["", f"## {w.capitalize()} rays: kd, the best ^Kd and the BVH against Embree "
-             f"({label})", ""] + ([SIDE_BY_SIDE, ""] if explain else []) + [
-             "| scene | triangles | Embree Mray/s | kd × Embree speed | best ^Kd × Embree "
+             f"({label})", ""] + ([SIDE_BY_SIDE, ""] if explain else []) +
+            ([GIVEN_ORDER, ""] if given else []) + [
+             "| scene | triangles | Embree Mray/s | kd × Embree speed |" + given_head +
+             " best ^Kd × Embree "
              "speed | BVH × Embree speed | kd ÷ BVH time | best ^Kd ÷ BVH time | steps/ray kd "
              "/ best / BVH | BVH box tests/ray | tests/ray kd / best / BVH | BVH wrong hits |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"] + out)
+             "|---|---:|---:|---:|" + ("---:|" if given else "") +
+             "---:|---:|---:|---:|---:|---:|---:|---:|"] + out)
 
 
 def benchmark_markdown(rows: list[dict], command: str, meta: dict | None = None) -> str:

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..tree import Tree
 from .spec import Spec
 from .timing import Tracer
 
@@ -30,13 +31,14 @@ class Rays:
 
 # The hits-only paths a results row has columns for: `<name>_s` (the rounds'
 # times) and `<name>_unexplained` (rays whose answer differs from Embree's).
-HITS_ONLY_PATHS = ("hits_only", "packets")
+HITS_ONLY_PATHS = ("hits_only", "packets", "given_order")
 
-# A factory makes a path's tracer for one trial and workload. Its run() must
+# A factory makes a path's tracer for one trial and workload (None: the path
+# does not apply to that tree). Its run() must
 # return t, prim, u, v in the order of `rays` (they are checked against
 # Embree's ray by ray); a path that wants the rays in another order reorders
 # its own copy when the factory runs, outside the timed call.
-TracerFactory = Callable[[object, Rays, Spec], Tracer]
+TracerFactory = Callable[[object, Rays, Spec], "Tracer | None"]
 
 
 def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
@@ -44,6 +46,18 @@ def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
     normal and depth modes take."""
     return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
                                          threads=1, counters=False))
+
+
+def _single_rays_in_given_order(tree, rays: Rays, spec: Spec) -> Tracer | None:
+    """The hits-only single rays in the caller's order (`ray_order="given"`):
+    the speed the spatial order (core/src/trace/ray_order.hpp) is measured
+    against, on the rays it sorts. None for a BVH, which keeps the given
+    order either way, and for an instanced scene's two levels, which take
+    none (InstancedTree.intersect has no ray_order)."""
+    if not isinstance(tree, Tree) or tree.structure == "bvh":
+        return None
+    return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
+                                         threads=1, counters=False, ray_order="given"))
 
 
 def _packets(tree, rays: Rays, spec: Spec) -> Tracer:
@@ -56,12 +70,14 @@ def _packets(tree, rays: Rays, spec: Spec) -> Tracer:
 
 # Per workload, the hits-only paths a spec with `hits_only = true` times, by
 # name (one of HITS_ONLY_PATHS). Packets pay on coherent rays only: the
-# camera's, in tile order.
+# camera's, in tile order. Only random rays are sorted by the spatial order
+# (ambient-occlusion and diffuse rays leave the camera's hits in pixel order,
+# already coherent), so only they are timed in the given order too.
 HITS_ONLY_TRACERS: dict[str, dict[str, TracerFactory]] = {
     "primary": {"hits_only": _single_rays, "packets": _packets},
     "ao": {"hits_only": _single_rays},
     "diffuse": {"hits_only": _single_rays},
-    "random": {"hits_only": _single_rays},
+    "random": {"hits_only": _single_rays, "given_order": _single_rays_in_given_order},
 }
 
 
@@ -82,5 +98,6 @@ def trial_tracers(tree, kd, embree, spec: Spec, rays: Rays) -> dict[str, Tracer]
         out["culled"] = Tracer(lambda: tree.intersect(o, d, tmax=tmax, threads=1, cull=True))
     if spec.hits_only:
         for name, factory in HITS_ONLY_TRACERS.get(rays.workload, {}).items():
-            out[name] = factory(tree, rays, spec)
+            if (tracer := factory(tree, rays, spec)) is not None:
+                out[name] = tracer
     return out

@@ -16,6 +16,7 @@
 #include "bindings/ray_batches.hpp"
 #include "inspect/tree_geometry.hpp"  // world_plane
 #include "trace/cpu_dispatch.hpp"
+#include "trace/ray_order.hpp"
 #include "trace/trace_path.hpp"
 #include "trace/traverse.hpp"
 
@@ -32,7 +33,7 @@ void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatI
                FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u, Out<float> v,
                Counter steps, Counter general_steps, Counter tests, Counter culled,
                Counter box_tests, int threads,
-               bool cull, Progress* progress, bool packets) {
+               bool cull, Progress* progress, bool packets, bool given_order) {
     if (packets && cull)
         throw std::invalid_argument("intersect: packets trace without culling (use cull=False)");
     const RayBatch rays = ray_batch(origins, directions, tmin, tmax);
@@ -42,7 +43,8 @@ void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatI
     if (packets)
         intersect_packets(tree, rays, hits, threads, progress);
     else
-        bsp::intersect(tree, rays, hits, threads, cull, progress);
+        bsp::intersect(tree, rays, hits, threads, cull, progress,
+                       given_order ? RayOrder::Given : RayOrder::Spatial);
 }
 
 // The recorded walk as columns: one row per visited node, one per test.
@@ -128,10 +130,26 @@ void bind_trace(nb::module_& m) {
             return bsp::rays_are_valid(origins.data(), directions.data(), origins.shape(0));
         },
         "origins"_a, "directions"_a, "All finite, no zero direction (checks.rays names the bad ones).");
+    m.def(
+        "orders_rays",
+        [](Vec3Array origins, Vec3Array directions) {
+            if (origins.shape(0) != directions.shape(0))
+                throw std::invalid_argument("origins and directions differ in length");
+            const float zero = 0.0f;
+            RayBatch rays;
+            rays.origins = origins.data();
+            rays.directions = directions.data();
+            rays.tmin = rays.tmax = &zero;
+            rays.count = origins.shape(0);
+            return bsp::order_rays(rays, RayOrder::Spatial);
+        },
+        "origins"_a, "directions"_a,
+        "Whether a kd or BSP tree's hits-only path traces these rays in spatial order "
+        "(ray_order='spatial').");
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(),
           "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(), "threads"_a, "cull"_a, "progress"_a.none(),
-          "packets"_a = false);
+          "packets"_a = false, "given_order"_a = false);
     m.def("trace_path", &trace_path, "tree"_a, "origin"_a, "direction"_a, "tmin"_a, "tmax"_a,
           "cull"_a);
 }

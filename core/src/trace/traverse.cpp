@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "trace/cpu_dispatch.hpp"
+#include "trace/ray_order.hpp"
 #include "parallel.hpp"
 
 namespace bsp {
@@ -39,11 +40,11 @@ int counter_arrays(const HitBatch& hits) {
 
 // Chunks of rays to threads, each chunk to the kernel. Chunks are a multiple
 // of every packet width, so a packet never straddles two chunks.
-void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatch& out,
-         int threads, Progress* progress) {
-    const TreeView view = make_tree_view(tree);
+// `units_per_ray`: the progress a ray is worth (the whole batch's rays
+// make Progress::kScale).
+void run(TraceRange trace, const TreeView& view, const RayBatch& rays, const HitBatch& out,
+         int threads, Progress* progress, uint64_t units_per_ray) {
     constexpr size_t kChunk = 1024;
-    const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
         if (progress) progress->check();
         trace(view, rays, out, begin, end);
@@ -51,15 +52,41 @@ void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatc
     });
 }
 
+void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatch& out,
+         int threads, Progress* progress) {
+    const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
+    run(trace, make_tree_view(tree), rays, out, threads, progress, units_per_ray);
+}
+
+// The kd/BSP hits-only path: an incoherent batch is traced in windows of
+// rays in their spatial order (ray_order.hpp), the same hits.
+void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
+                   const HitBatch& out, int threads, Progress* progress, RayOrder order) {
+    if (!order_rays(rays, order)) {
+        run(trace, tree, rays, out, threads, progress);
+        return;
+    }
+    const TreeView view = make_tree_view(tree);
+    const uint64_t units_per_ray = Progress::kScale / rays.count;
+    for (size_t begin = 0; begin < rays.count; begin += kOrderWindow) {
+        const size_t end = std::min(rays.count, begin + kOrderWindow);
+        const OrderedRays ordered(rays, begin, end);
+        run(trace, view, ordered.rays(), ordered.hits(), threads, progress, units_per_ray);
+        ordered.scatter(out);
+    }
+}
+
 }  // namespace
 
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
-               Progress* progress) {
+               Progress* progress, RayOrder order) {
     const int given = counter_arrays(hits);
     if (given != 0 && given != kCounterArrays)
         throw std::invalid_argument("intersect: give all five counter arrays or none");
     if (tree.structure == Structure::Bvh) {
         // No culling: a BVH leaf's box is already its triangles' tight box.
+        // Rays in their given order: the BVH's walk gained nothing from the
+        // spatial order that pays for sorting (docs/performance.md).
         run(given != 0 ? selected_kernels().bvh_single_ray[1] : bvh_hits_kernel(), tree, rays,
             hits, threads, progress);
         return;
@@ -70,8 +97,11 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
     // when off, one per counting policy keeps the counters out of the
     // hits-only path.
     const LeafBoxes boxes = cull ? tree.options.leaf_boxes : LeafBoxes::None;
-    run(selected_kernels().single_ray[given != 0][int(boxes)], tree, rays, hits, threads,
-        progress);
+    const TraceRange kernel = selected_kernels().single_ray[given != 0][int(boxes)];
+    if (given != 0)
+        run(kernel, tree, rays, hits, threads, progress);
+    else
+        run_hits_only(kernel, tree, rays, hits, threads, progress, order);
 }
 
 void intersect_packets(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads,

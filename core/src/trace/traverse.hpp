@@ -34,13 +34,23 @@ struct HitBatch {
     uint32_t* box_tests = nullptr;      // ray-box tests (BVH trees; 0 on kd and BSP trees)
 };
 
+// How the hits-only path of a kd or BSP tree orders a batch
+// (Tree.intersect's ray_order). Spatial traces an incoherent batch - random
+// or scattered rays, not a camera's nor rays cast from its hits in pixel
+// order - in windows sorted by the rays' origins and directions
+// (ray_order.hpp): neighbouring rays then walk mostly the same nodes, and
+// the walk runs faster. Given traces every batch in the caller's order. The
+// hits are the same either way, bit for bit; the counting path and the BVH
+// always take the given order.
+enum class RayOrder : int { Spatial = 0, Given = 1 };
+
 // With `cull` (and boxes in the tree), a leaf skips the triangles whose box
 // misses the box of the ray's segment inside the leaf. Throws
 // std::invalid_argument when only some of the counter arrays are given.
 // A BVH tree (Structure::Bvh) takes the BVH kernel (kernels/bvh_single_ray.hpp),
 // for which cull changes nothing: its leaves' boxes are already tight.
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
-               Progress* progress = nullptr);
+               Progress* progress = nullptr, RayOrder order = RayOrder::Spatial);
 
 // The same closest hits, traced in packets of consecutive rays (as many as
 // the selected level's SIMD lanes; kernels/packet.hpp): fast when consecutive

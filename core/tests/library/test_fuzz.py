@@ -98,7 +98,8 @@ def check_spec(case: dict) -> None:
     method, opts = case["method"], {**method_options(case), **case.get("options", {})}
     tree = bsplab.build(tris, method=method, **opts)
     rays = agreement.FamilyRays(tris, RAYS_PER_FAMILY, seed=len(tris))
-    for name, c in rays.check(tree).items():
+    checked = rays.check(tree)
+    for name, c in checked.items():
         o, d, _, ref = rays.rays[name]
         label = f"{method} {opts}"
         assert_none(c["unexplained"], f"{name} rays disagree with Embree", label, case, o, d,
@@ -106,6 +107,26 @@ def check_spec(case: dict) -> None:
         # A leak - a miss or a farther hit where Embree hits (oracle.leaks) -
         # is wrong even when the double-precision tie-break could explain it.
         assert_none(c["leaks"], f"{name} rays leak", label, case, o, d, c["hits"], ref)
+    check_sorted_batch(tree, rays, checked, f"{method} {opts}", case)
+
+
+def check_sorted_batch(tree, rays, checked: dict, label: str, case: dict) -> None:
+    """Every family's rays, three times over and shuffled into one batch of
+    more than kOrderMinRays: the hits-only path traces it in spatial order
+    (core/src/trace/ray_order.hpp) and must give each ray the counting
+    path's hit, which Embree has just checked."""
+    names = list(rays.rays)
+    o = np.concatenate([rays.rays[n][0] for n in names] * 3)
+    d = np.concatenate([rays.rays[n][1] for n in names] * 3)
+    tmax = np.concatenate([rays.rays[n][2] for n in names] * 3)
+    want = {k: np.concatenate([checked[n]["hits"][k] for n in names] * 3)
+            for k in ("t", "prim", "u", "v")}
+    perm = np.random.default_rng(len(o)).permutation(len(o))
+    got = tree.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False)
+    differ = np.flatnonzero((got["t"] != want["t"][perm]) | (got["prim"] != want["prim"][perm]) |
+                            (got["u"] != want["u"][perm]) | (got["v"] != want["v"][perm]))
+    assert_none(differ, "rays differ in spatial order", label, case, o[perm], d[perm], got,
+                {k: v[perm] for k, v in want.items()})
 
 
 @settings(max_examples=examples(150), deadline=None, derandomize=not LONG,

@@ -16,9 +16,9 @@
 #include "trace/kernels/in_plane.hpp"
 #include "trace/kernels/leaf_acceptance.hpp"
 #include "trace/kernels/leaf_simd.hpp"
-#include "trace/kernels/ray_coherence.hpp"
 #include "trace/kernels/tree_view.hpp"
 #include "trace/kernels/walk_start.hpp"
+#include "trace/ray_coherence.hpp"
 
 #ifndef BSPLAB_ISA_NS
 #error "single_ray.hpp is compiled per instruction set: include it from trace_kernels.cpp"

@@ -1,0 +1,141 @@
+// Incoherent rays in spatial order (trace/ray_order.hpp): the sorted copy
+// holds every ray once, with its own limits, neighbours in it are near each
+// other, and scatter() puts each hit back at its ray.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "trace/ray_order.hpp"
+
+namespace bsp {
+namespace {
+
+struct RandomRays {
+    std::vector<float> o, d, tmin, tmax;
+    RayBatch batch;
+    explicit RandomRays(size_t n, uint32_t seed = 1) : o(3 * n), d(3 * n), tmin(n), tmax(n) {
+        std::mt19937 g(seed);
+        std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+        std::normal_distribution<float> normal;
+        for (float& x : o) x = 10.0f * u(g);
+        for (float& x : d) x = normal(g);
+        for (size_t i = 0; i < n; ++i) {
+            tmin[i] = float(i);  // each ray's own values, to find them again
+            tmax[i] = float(i) + 0.5f;
+        }
+        batch.origins = o.data();
+        batch.directions = d.data();
+        batch.tmin = tmin.data();
+        batch.tmax = tmax.data();
+        batch.tmin_stride = batch.tmax_stride = 1;
+        batch.count = n;
+    }
+};
+
+// Which caller's ray (from begin) a sorted ray is: its tmin says.
+size_t source_of(const OrderedRays& ordered, size_t i) {
+    return size_t(ordered.rays().tmin[i]);
+}
+
+TEST(OrderedRays, HoldsEveryRayOnceWithItsOwnLimits) {
+    RandomRays r(20000);
+    const size_t begin = 3000, end = 17000;
+    const OrderedRays ordered(r.batch, begin, end);
+    ASSERT_EQ(ordered.rays().count, end - begin);
+    std::vector<int> seen(end, 0);
+    for (size_t i = 0; i < end - begin; ++i) {
+        const size_t src = source_of(ordered, i);
+        ASSERT_GE(src, begin);
+        ASSERT_LT(src, end);
+        ++seen[src];
+        EXPECT_EQ(ordered.rays().tmax[i], r.tmax[src]);
+        for (int k = 0; k < 3; ++k) {
+            EXPECT_EQ(ordered.rays().origins[3 * i + k], r.o[3 * src + k]);
+            EXPECT_EQ(ordered.rays().directions[3 * i + k], r.d[3 * src + k]);
+        }
+    }
+    for (size_t i = begin; i < end; ++i) EXPECT_EQ(seen[i], 1) << i;
+}
+
+TEST(OrderedRays, SharedLimitsStayShared) {
+    RandomRays r(5000);
+    const float lo = 0.25f, hi = 9.0f;
+    r.batch.tmin = &lo;
+    r.batch.tmax = &hi;
+    r.batch.tmin_stride = r.batch.tmax_stride = 0;
+    const OrderedRays ordered(r.batch, 0, 5000);
+    EXPECT_EQ(ordered.rays().tmin_stride, 0u);
+    EXPECT_EQ(ordered.rays().tmax_stride, 0u);
+    EXPECT_EQ(ordered.rays().tmin[0], lo);
+    EXPECT_EQ(ordered.rays().tmax[0], hi);
+}
+
+TEST(OrderedRays, NeighboursAreNearerThanInTheGivenOrder) {
+    RandomRays r(50000);
+    const OrderedRays ordered(r.batch, 0, 50000);
+    const auto mean_gap = [](const float* o, const float* d, size_t n) {
+        double sum = 0.0;
+        for (size_t i = 0; i + 1 < n; ++i) {
+            double od = 0.0, dl = 0.0, dn = 0.0, dot = 0.0;
+            for (int k = 0; k < 3; ++k) {
+                od += std::pow(double(o[3 * i + k]) - o[3 * i + 3 + k], 2);
+                dot += double(d[3 * i + k]) * d[3 * i + 3 + k];
+                dl += double(d[3 * i + k]) * d[3 * i + k];
+                dn += double(d[3 * i + 3 + k]) * d[3 * i + 3 + k];
+            }
+            // Origin distance over the box (20 wide) plus the angle's cosine gap.
+            sum += std::sqrt(od) / 20.0 + (1.0 - dot / std::sqrt(dl * dn));
+        }
+        return sum / double(n - 1);
+    };
+    const double given = mean_gap(r.o.data(), r.d.data(), 50000);
+    const double sorted =
+        mean_gap(ordered.rays().origins, ordered.rays().directions, ordered.rays().count);
+    EXPECT_LT(sorted, 0.5 * given) << given << " " << sorted;
+}
+
+TEST(OrderedRays, ScatterPutsEachHitAtItsRay) {
+    RandomRays r(12000);
+    const size_t begin = 1000, end = 11000;
+    const OrderedRays ordered(r.batch, begin, end);
+    const HitBatch& h = ordered.hits();
+    for (size_t i = 0; i < end - begin; ++i) {
+        const float src = float(source_of(ordered, i));
+        h.t[i] = src;
+        h.prim[i] = int32_t(src);
+        h.u[i] = src + 0.25f;
+        h.v[i] = src + 0.5f;
+    }
+    std::vector<float> t(12000, -1.0f), u(12000, -1.0f), v(12000, -1.0f);
+    std::vector<int32_t> prim(12000, -7);
+    HitBatch out{t.data(), prim.data(), u.data(), v.data()};
+    ordered.scatter(out);
+    for (size_t i = 0; i < 12000; ++i) {
+        const bool inside = i >= begin && i < end;
+        EXPECT_EQ(t[i], inside ? float(i) : -1.0f) << i;
+        EXPECT_EQ(prim[i], inside ? int32_t(i) : -7) << i;
+        EXPECT_EQ(u[i], inside ? float(i) + 0.25f : -1.0f) << i;
+        EXPECT_EQ(v[i], inside ? float(i) + 0.5f : -1.0f) << i;
+    }
+}
+
+TEST(OrderedRays, WhichBatchesAreSorted) {
+    RandomRays r(kOrderMinRays);
+    EXPECT_TRUE(order_rays(r.batch, RayOrder::Spatial));
+    EXPECT_FALSE(order_rays(r.batch, RayOrder::Given));
+    r.batch.count = kOrderMinRays - 1;
+    EXPECT_FALSE(order_rays(r.batch, RayOrder::Spatial));
+    // Rays from one point (a camera's, a light's) are coherent in origin.
+    RandomRays same(kOrderMinRays);
+    for (float& x : same.o) x = 1.0f;
+    EXPECT_FALSE(order_rays(same.batch, RayOrder::Spatial));
+    // Rays in one direction are coherent in direction.
+    RandomRays parallel(kOrderMinRays);
+    for (size_t i = 0; i < parallel.d.size(); ++i) parallel.d[i] = i % 3 == 0 ? 1.0f : 0.01f;
+    EXPECT_FALSE(order_rays(parallel.batch, RayOrder::Spatial));
+}
+
+}  // namespace
+}  // namespace bsp

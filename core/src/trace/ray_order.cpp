@@ -1,0 +1,163 @@
+#include "trace/ray_order.hpp"
+
+#include <algorithm>
+#include <memory>
+#include <cmath>
+#include <utility>
+
+namespace bsp {
+
+bool order_rays(const RayBatch& rays, RayOrder order) {
+    return order == RayOrder::Spatial && rays.count >= kOrderMinRays &&
+           !rays_are_coherent(rays, 0, rays.count) && !origins_are_coherent(rays);
+}
+
+namespace {
+
+// A coordinate's cell, 0 to 31, with its five bits spread to every sixth
+// bit (bit i to bit 6 i): its share of the six-way Morton code. Plain
+// arithmetic without a table or a branch, so that the keys' loop
+// vectorizes. A NaN or a value below 0 takes cell 0.
+inline uint32_t spread_cell(float c) {
+    c = c > 0.0f ? c : 0.0f;
+    // Through int32_t: SSE2 converts floats to signed integers only.
+    const uint32_t x = uint32_t(int32_t(c < 31.0f ? c : 31.0f));
+    return (x & 1u) | (x & 2u) << 5 | (x & 4u) << 10 | (x & 8u) << 15 | (x & 16u) << 20;
+}
+
+// Fresh memory costs a page fault per 4 KiB on first touch, which for a
+// window of rays cost more than sorting it: the buffers stay with the
+// calling thread from batch to batch, grown as needed (at most a window's,
+// 68 bytes a ray: 17 MiB).
+struct OrderScratch {
+    std::unique_ptr<uint64_t[]> keyed, tmp;
+    std::unique_ptr<uint32_t[]> order;
+    std::unique_ptr<float[]> origins, directions, tmin, tmax, t, u, v;
+    std::unique_ptr<int32_t[]> prim;
+    size_t capacity = 0;
+
+    void reserve(size_t n) {
+        if (n <= capacity) return;
+        keyed.reset(new uint64_t[n]);
+        tmp.reset(new uint64_t[n]);
+        order.reset(new uint32_t[n]);
+        origins.reset(new float[3 * n]);
+        directions.reset(new float[3 * n]);
+        tmin.reset(new float[n]);
+        tmax.reset(new float[n]);
+        t.reset(new float[n]);
+        u.reset(new float[n]);
+        v.reset(new float[n]);
+        prim.reset(new int32_t[n]);
+        capacity = n;
+    }
+};
+
+OrderScratch& order_scratch() {
+    thread_local OrderScratch scratch;
+    return scratch;
+}
+
+}  // namespace
+
+OrderedRays::OrderedRays(const RayBatch& rays, size_t begin, size_t end)
+    : begin_(begin), count_(end - begin) {
+    static_assert(kOrderOriginBits == 5 && kOrderDirectionBits == 5, "spread_cell takes 5 bits");
+    const size_t n = count_;
+    const float* o = rays.origins + 3 * begin;
+    const float* d = rays.directions + 3 * begin;
+    // The origins' box: the cells follow the rays, not the scene.
+    float lo[3], scale[3];
+    {
+        float hi[3];
+        for (int k = 0; k < 3; ++k) lo[k] = hi[k] = o[k];
+        for (size_t i = 0; i < n; ++i)
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = std::min(lo[k], o[3 * i + k]);
+                hi[k] = std::max(hi[k], o[3 * i + k]);
+            }
+        for (int k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? 32.0f / (hi[k] - lo[k]) : 0.0f;
+    }
+    // Keys: the origin's cells on bits 6 i + 3..5, the direction's (over its
+    // largest component, so in [-1, 1]) on bits 6 i + 0..2; the ray's index
+    // below, so the sort carries it.
+    OrderScratch& scratch = order_scratch();
+    scratch.reserve(n);
+    uint64_t* keyed = scratch.keyed.get();
+    uint64_t* tmp = scratch.tmp.get();
+    uint32_t* keys = scratch.order.get();  // the order is written over them below
+    for (size_t i = 0; i < n; ++i) {
+        const float* oi = o + 3 * i;
+        const float* di = d + 3 * i;
+        const float m = std::max(std::max(std::fabs(di[0]), std::fabs(di[1])), std::fabs(di[2]));
+        // A zero direction (refused before tracing) would give NaN: cell 0.
+        const float inv = 16.0f / m;
+        keys[i] = spread_cell((oi[0] - lo[0]) * scale[0]) << 5 |
+                  spread_cell((oi[1] - lo[1]) * scale[1]) << 4 |
+                  spread_cell((oi[2] - lo[2]) * scale[2]) << 3 |
+                  spread_cell(di[0] * inv + 16.0f) << 2 | spread_cell(di[1] * inv + 16.0f) << 1 |
+                  spread_cell(di[2] * inv + 16.0f);
+    }
+    for (size_t i = 0; i < n; ++i) keyed[i] = uint64_t(keys[i]) << 32 | uint32_t(i);
+    // A least-significant-digit radix sort on the 30-bit key: three passes
+    // of 10 bits, stable, so equal keys keep the caller's order.
+    constexpr int kDigit = 10;
+    constexpr size_t kBuckets = size_t(1) << kDigit;
+    for (int pass = 0; pass < 3; ++pass) {
+        const int shift = 32 + pass * kDigit;
+        size_t count[kBuckets] = {};
+        for (size_t i = 0; i < n; ++i) ++count[(keyed[i] >> shift) & (kBuckets - 1)];
+        size_t sum = 0;
+        for (size_t& c : count) sum += std::exchange(c, sum);
+        for (size_t i = 0; i < n; ++i) tmp[count[(keyed[i] >> shift) & (kBuckets - 1)]++] = keyed[i];
+        std::swap(keyed, tmp);
+    }
+    uint32_t* order = scratch.order.get();
+    order_ = order;
+    float* origins = scratch.origins.get();
+    float* directions = scratch.directions.get();
+    // Ahead by this many rays: the reads jump through the caller's arrays.
+    constexpr size_t kAhead = 16;
+    for (size_t i = 0; i < n; ++i) {
+        if (i + kAhead < n) {
+            const uint32_t ahead = uint32_t(keyed[i + kAhead]);
+            __builtin_prefetch(o + 3 * size_t(ahead));
+            __builtin_prefetch(d + 3 * size_t(ahead));
+        }
+        const uint32_t r = uint32_t(keyed[i]);
+        order[i] = r;
+        for (int k = 0; k < 3; ++k) {
+            origins[3 * i + k] = o[3 * size_t(r) + k];
+            directions[3 * i + k] = d[3 * size_t(r) + k];
+        }
+    }
+    rays_.origins = origins;
+    rays_.directions = directions;
+    rays_.count = n;
+    // Per-ray limits follow their rays; a shared one stays shared.
+    const auto limits = [&](const float* in, size_t stride, float* c) {
+        if (stride == 0) return in;
+        for (size_t i = 0; i < n; ++i) c[i] = in[stride * (begin + order[i])];
+        return static_cast<const float*>(c);
+    };
+    rays_.tmin = limits(rays.tmin, rays.tmin_stride, scratch.tmin.get());
+    rays_.tmin_stride = rays.tmin_stride ? 1 : 0;
+    rays_.tmax = limits(rays.tmax, rays.tmax_stride, scratch.tmax.get());
+    rays_.tmax_stride = rays.tmax_stride ? 1 : 0;
+    hits_.t = scratch.t.get();
+    hits_.prim = scratch.prim.get();
+    hits_.u = scratch.u.get();
+    hits_.v = scratch.v.get();
+}
+
+void OrderedRays::scatter(const HitBatch& out) const {
+    for (size_t i = 0; i < count_; ++i) {
+        const size_t r = begin_ + order_[i];
+        out.t[r] = hits_.t[i];
+        out.prim[r] = hits_.prim[i];
+        out.u[r] = hits_.u[i];
+        out.v[r] = hits_.v[i];
+    }
+}
+
+}  // namespace bsp
