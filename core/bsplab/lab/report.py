@@ -303,11 +303,14 @@ PAIRED = ("Every time is measured with the lab's one protocol, paired rounds "
 
 # What the columns of each benchmark's tables are.
 BENCH_COLUMNS = (
-    "Each tree traces each workload's rays on up to three paths, each timed beside "
+    "Each tree traces each workload's rays on up to four paths, each timed beside "
     "Embree (`rtcIntersect1` per ray through embreex, which times its own loop) in the "
     "same rounds: **hits-only**, one ray at a time without counters "
     "(`tree.intersect(o, d, threads=1, counters=False)`: the closest hits only, as "
-    "Embree needs); **packets**, primary rays in the camera's tile order traced in "
+    "Embree needs; a kd or BSP tree sorts an incoherent batch - the random rays - into "
+    "spatial order first, `ray_order=\"spatial\"`); **given order**, the random rays "
+    "on the same path kept in the caller's order (`ray_order=\"given\"`; not on the "
+    "BVH, which never sorts); **packets**, primary rays in the camera's tile order traced in "
     "SIMD groups of 4, 8 or 16 (`tree.intersect(o, d, threads=1, counters=False, "
     "packets=True)`: the same hits, and the path of the shaded, normal and depth "
     "renders); **counters** (`counters=True`: the path "
@@ -456,7 +459,9 @@ GIVEN_ORDER = ("The kd and BSP trees' hits-only path traces a batch of incoheren
                "default; core/src/trace/ray_order.hpp), then returns the hits in the "
                "caller's order; Embree traces the rays as given. `kd × Embree speed, "
                "given order` is kd's hits-only path on the same rays kept in the given "
-               "order (`ray_order=\"given\"`), timed in the same rounds.")
+               "order (`ray_order=\"given\"`), timed in the same rounds; `kd ÷ BVH` and "
+               "`best ^Kd ÷ BVH` are taken in the given order, where the trees and the BVH "
+               "(which is never sorted) run the same walk.")
 
 
 def _speed(g: Group, column: str) -> float | None:
@@ -464,11 +469,12 @@ def _speed(g: Group, column: str) -> float | None:
     return None if x is None else float(np.median(x))
 
 
-def _time_ratio(a: Group, b: Group, column: str) -> float | None:
+def _time_ratio(a: Group, b: Group, column: str, column_b: str | None = None) -> float | None:
     """Median of the per-round ratios of `a`'s time over `b`'s, both taken
     from their rounds' Embree partners (each tree's trial has its own rounds:
-    a's time / its Embree over b's time / its Embree)."""
-    ra, rb = a.per_round(column, "embree_s"), b.per_round(column, "embree_s")
+    a's time / its Embree over b's time / its Embree); `b`'s from `column_b`
+    when given."""
+    ra, rb = a.per_round(column, "embree_s"), b.per_round(column_b or column, "embree_s")
     if ra is None or rb is None:
         return None
     return float(np.median(ra) / np.median(rb))
@@ -497,9 +503,12 @@ def side_by_side_table(res: Results, w: str, explain: bool = True) -> list[str]:
             fields.append("—" if g is None else _f(_speed(g, column), "{:.2f}"))
         if given:
             fields.insert(4, _f(_speed(kd, "given_order_s"), "{:.2f}"))
-        fields += [_f(_time_ratio(kd, bvh, column), "{:.2f}"),
+        # The structure's ratio on one walk: the trees in the given order, as
+        # the BVH traces (it takes no spatial order).
+        ours = "given_order_s" if given else column
+        fields += [_f(_time_ratio(kd, bvh, ours, column), "{:.2f}"),
                    "—" if best_g is None else f"{best_g.method} {best_g.k}: "
-                   + _f(_time_ratio(best_g, bvh, column), "{:.2f}")]
+                   + _f(_time_ratio(best_g, bvh, ours, column), "{:.2f}")]
         fields += [" / ".join("—" if g is None else f"{g.mean('steps'):.1f}"
                               for g in (kd, best_g, bvh)),
                    _f(box_tests(bvh), "{:.1f}"),
