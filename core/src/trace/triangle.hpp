@@ -5,6 +5,8 @@
 // bit-identical edge functions of opposite sign, so no ray slips through a
 // shared edge - the property the Embree comparison depends on.
 #pragma once
+#include <cmath>
+
 #include "geometry.hpp"
 #include "trace/kernel_inlining.hpp"
 
@@ -62,6 +64,25 @@ inline float component(const Vec3& v, int k) {
     return c[k];
 }
 
+// A hit's u, v from its edge functions: V / det and W / det with det =
+// U + V + W, through the float reciprocal. Where that overflows (|det| below
+// 1 / FLT_MAX: a ray all but lying in the triangle's plane, whose sheared
+// edge functions are all tiny) the products would be 0 * inf and x * inf,
+// NaN and inf; there the quotients are taken in double, which keeps them in
+// [0, 1]. Every kernel takes its u, v from here (or, in packets, the same
+// operations lane by lane), so they stay the same bit for bit on every path.
+BSPLAB_KERNEL_SHARED_INLINE void barycentrics(float U, float V, float W, float& u, float& v) {
+    const float det = U + V + W;
+    const float inv = 1.0f / det;
+    if (std::isinf(inv)) [[unlikely]] {
+        u = float(double(V) / double(det));
+        v = float(double(W) / double(det));
+        return;
+    }
+    u = V * inv;
+    v = W * inv;
+}
+
 // Returns true and fills `hit` when the ray hits the triangle with
 // tmin < t < tmax, or t == tmax when `tie_wins` (the traversal's tie rule:
 // of equally close hits the smallest triangle index wins, single_ray.hpp).
@@ -103,10 +124,8 @@ BSPLAB_KERNEL_SHARED_INLINE bool intersect_triangle(const ShearedRay& r, const T
     const double t = ray_distance(tri, r);
     const float tf = float(t);
     if (!(tf > tmin && (tf < tmax || (tie_wins && tf == tmax)))) return false;
-    const float inv = 1.0f / det;
     hit.t = tf;
-    hit.u = V * inv;
-    hit.v = W * inv;
+    barycentrics(U, V, W, hit.u, hit.v);
     return true;
 }
 

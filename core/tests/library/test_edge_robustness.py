@@ -157,3 +157,36 @@ def test_the_oracle_decides_a_pass_by_exactly_and_still_sees_real_leaks():
     behind["prim"][37] = 28
     behind["t"][37] = np.float32(oracle.exact_hit_t(tris[28], o[37], d[37]))
     assert list(oracle.leaks(behind, ref, **kw)) == [37]
+
+
+@pytest.mark.parametrize("method,options", [("kd", {}), ("kd", {"leaf_size": 64}),
+                                            ("bsp_wn+kd", {}), ("bvh", {})])
+def test_a_ray_all_but_in_a_triangles_plane_gets_finite_barycentrics(method, options):
+    """The long fuzzer's fan far from the origin: a ray whose z is 2.8e-29
+    before the fan's plane z = 0 and rises 2.8e-29 a unit, so it crosses the
+    plane at t = 1 inside triangle 5. Its sheared edge functions are all
+    tiny, their sum below 1 / FLT_MAX: u = V / det through the float
+    reciprocal was 0 * inf = NaN and v inf. triangle.hpp's barycentrics()
+    takes the quotients in double there; every path must give the same
+    finite u, v in the triangle (`leaf_size` 64 makes one leaf of 34, tested
+    in SIMD blocks; 16 copies of the ray make packets)."""
+    from bsplab import fuzz
+    tris = fuzz.build_scene([{"kind": "fan", "seed": 0, "count": 34, "at": [0, 0, 0]}], 0,
+                            [100000.0, 0, 0])
+    o = np.tile(np.array([[100000.046875, 0.29145029187202454, -2.780522838610184e-29]],
+                         np.float32), (16, 1))
+    d = np.tile(np.array([[0.265625, -0.6823660135269165, 2.780522838610184e-29]],
+                         np.float32), (16, 1))
+    tree = bsplab.build(tris, method, **options)
+    counted = tree.intersect(o, d)
+    assert counted["prim"][0] == 5 and counted["t"][0] == 1.0
+    u, v = float(counted["u"][0]), float(counted["v"][0])
+    assert np.isfinite([u, v]).all() and u >= 0 and v >= 0 and u + v <= 1 + 1e-6, (u, v)
+    # Where it crosses the plane, the point is the one u, v name.
+    p = (1 - u - v) * tris[5, 0].astype(np.float64) + u * tris[5, 1] + v * tris[5, 2]
+    assert np.abs(p - (o[0].astype(np.float64) + d[0])).max() < 1e-2
+    for kw in ({"counters": False}, {"counters": False, "packets": True},
+               {"counters": False, "threads": 2}):
+        got = tree.intersect(o, d, **kw)
+        for k in ("t", "prim", "u", "v"):
+            assert np.array_equal(got[k], counted[k]), (kw, k, got[k][:2], counted[k][:2])

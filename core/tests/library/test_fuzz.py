@@ -123,8 +123,9 @@ def check_sorted_batch(tree, rays, checked: dict, label: str, case: dict) -> Non
             for k in ("t", "prim", "u", "v")}
     perm = np.random.default_rng(len(o)).permutation(len(o))
     got = tree.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False)
-    differ = np.flatnonzero((got["t"] != want["t"][perm]) | (got["prim"] != want["prim"][perm]) |
-                            (got["u"] != want["u"][perm]) | (got["v"] != want["v"][perm]))
+    # Bit for bit (a NaN would not equal itself).
+    differ = np.flatnonzero(np.any([got[k].view(np.uint32) != want[k][perm].view(np.uint32)
+                                    for k in ("t", "prim", "u", "v")], axis=0))
     assert_none(differ, "rays differ in spatial order", label, case, o[perm], d[perm], got,
                 {k: v[perm] for k, v in want.items()})
 

@@ -225,6 +225,17 @@ inline LaneMask intersect_packet_triangle(const TreeView& tree, const PacketRays
     hits.u = select(closer, V * inv, hits.u);
     hits.v = select(closer, W * inv, hits.v);
     hits.prim = closer ? prims : hits.prim;
+    // Where the reciprocal overflowed, barycentrics()' double quotients
+    // (triangle.hpp), lane by lane, so that u, v match the single rays'.
+    for (LaneMask m = lane_bits(closer); m; m &= m - 1) {
+        const int i = __builtin_ctz(m);
+        if (std::isinf(inv[i])) [[unlikely]] {
+            float u, v;
+            barycentrics(U[i], V[i], W[i], u, v);
+            hits.u[i] = u;
+            hits.v[i] = v;
+        }
+    }
     return rejected;
 }
 

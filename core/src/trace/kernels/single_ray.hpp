@@ -212,8 +212,9 @@ __attribute__((noinline)) BSPLAB_KERNEL_FLATTEN void intersect_leaf_hits_only(
                 !leaf_accepts(culling_box(tree, p, node.first + first + lane), org, dir, t0,
                               std::min(t1, hit.reach), t, t_e, pad))
                 continue;
-            const float inv = 1.0f / (e.U[lane] + e.V[lane] + e.W[lane]);
-            hit.take(t, p, e.V[lane] * inv, e.W[lane] * inv, t_e);
+            float u, v;
+            barycentrics(e.U[lane], e.V[lane], e.W[lane], u, v);
+            hit.take(t, p, u, v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
                 seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         }
