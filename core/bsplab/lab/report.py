@@ -499,10 +499,11 @@ def side_by_side_table(res: Results, w: str, explain: bool = True) -> list[str]:
                 if (g := res.get(scene, w, m, k)) is not None and g.has_embree()]
         best_g = max(best, key=lambda g: _speed(g, column) or 0.0) if best else None
         fields = [scene_label(scene), f"{kd.triangles:,}", _f(_mrays(kd, "embree_s"), "{:.2f}")]
-        for g in (kd, best_g, bvh):
-            fields.append("—" if g is None else _f(_speed(g, column), "{:.2f}"))
+        fields.append(_f(_speed(kd, column), "{:.2f}"))
         if given:
-            fields.insert(4, _f(_speed(kd, "given_order_s"), "{:.2f}"))
+            fields.append(_f(_speed(kd, "given_order_s"), "{:.2f}"))
+        for g in (best_g, bvh):
+            fields.append("—" if g is None else _f(_speed(g, column), "{:.2f}"))
         # The structure's ratio on one walk: the trees in the given order, as
         # the BVH traces (it takes no spatial order).
         ours = "given_order_s" if given else column

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "builders/memory.hpp"
+#include "radix_sort.hpp"
 
 namespace bsp {
 
@@ -46,23 +47,10 @@ inline uint64_t event_sort_key(const Event& e) {
 }
 
 inline void radix_sort_events(std::vector<Event>& events, std::vector<Event>& tmp) {
-    constexpr int kBits = 9, kPasses = 4;
-    constexpr size_t kBuckets = size_t(1) << kBits;
-    std::vector<size_t> count(kPasses * kBuckets, 0);
-    for (const Event& e : events) {
-        const uint64_t key = event_sort_key(e);
-        for (int p = 0; p < kPasses; ++p)
-            ++count[p * kBuckets + ((key >> (p * kBits)) & (kBuckets - 1))];
-    }
     tmp.resize(events.size());
-    for (int p = 0; p < kPasses; ++p) {
-        size_t* c = count.data() + p * kBuckets;
-        size_t sum = 0;
-        for (size_t b = 0; b < kBuckets; ++b) sum += std::exchange(c[b], sum);
-        for (const Event& e : events)
-            tmp[c[(event_sort_key(e) >> (p * kBits)) & (kBuckets - 1)]++] = e;
+    if (radix_sort<9, 4>(events.data(), tmp.data(), events.size(), event_sort_key) !=
+        events.data())
         events.swap(tmp);
-    }
 }
 
 // A node's sorted events along one axis, inside an EventStack's block.

@@ -1,9 +1,11 @@
 #include "trace/ray_order.hpp"
 
 #include <algorithm>
-#include <memory>
 #include <cmath>
+#include <memory>
 #include <utility>
+
+#include "radix_sort.hpp"
 
 namespace bsp {
 
@@ -84,7 +86,7 @@ OrderedRays::OrderedRays(const RayBatch& rays, size_t begin, size_t end)
     OrderScratch& scratch = order_scratch();
     scratch.reserve(n);
     uint64_t* keyed = scratch.keyed.get();
-    uint64_t* tmp = scratch.tmp.get();
+    uint64_t* const tmp = scratch.tmp.get();
     uint32_t* keys = scratch.order.get();  // the order is written over them below
     for (size_t i = 0; i < n; ++i) {
         const float* oi = o + 3 * i;
@@ -99,19 +101,9 @@ OrderedRays::OrderedRays(const RayBatch& rays, size_t begin, size_t end)
                   spread_cell(di[2] * inv + 16.0f);
     }
     for (size_t i = 0; i < n; ++i) keyed[i] = uint64_t(keys[i]) << 32 | uint32_t(i);
-    // A least-significant-digit radix sort on the 30-bit key: three passes
-    // of 10 bits, stable, so equal keys keep the caller's order.
-    constexpr int kDigit = 10;
-    constexpr size_t kBuckets = size_t(1) << kDigit;
-    for (int pass = 0; pass < 3; ++pass) {
-        const int shift = 32 + pass * kDigit;
-        size_t count[kBuckets] = {};
-        for (size_t i = 0; i < n; ++i) ++count[(keyed[i] >> shift) & (kBuckets - 1)];
-        size_t sum = 0;
-        for (size_t& c : count) sum += std::exchange(c, sum);
-        for (size_t i = 0; i < n; ++i) tmp[count[(keyed[i] >> shift) & (kBuckets - 1)]++] = keyed[i];
-        std::swap(keyed, tmp);
-    }
+    // Sorted on the 30-bit key, in three passes of 10 bits (radix_sort.hpp):
+    // stable, so equal keys keep the caller's order.
+    keyed = radix_sort<10, 3>(keyed, tmp, n, [](uint64_t k) { return k >> 32; });
     uint32_t* order = scratch.order.get();
     order_ = order;
     float* origins = scratch.origins.get();
