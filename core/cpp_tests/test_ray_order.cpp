@@ -3,8 +3,10 @@
 // other, and scatter() puts each hit back at its ray.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "trace/ray_order.hpp"
@@ -94,6 +96,51 @@ TEST(OrderedRays, NeighboursAreNearerThanInTheGivenOrder) {
     const double sorted =
         mean_gap(ordered.rays().origins, ordered.rays().directions, ordered.rays().count);
     EXPECT_LT(sorted, 0.5 * given) << given << " " << sorted;
+}
+
+// The order itself, pinned: a stable sort of the documented key (ray_order.hpp:
+// the origin's cell in the window's origin box and the direction's cell on
+// the cube, 32 per axis, interleaved bit by bit, origin x first), computed
+// here bit by bit. However the core spreads the bits, the rays must come in
+// this order.
+TEST(OrderedRays, OrderIsTheStableSortOfTheMortonKey) {
+    RandomRays r(30000, 7);
+    // A few rays along the axes and at the box's faces, whose cells sit at 0 and 31.
+    for (size_t i = 0; i < 300; ++i) {
+        r.d[3 * i + 0] = r.d[3 * i + 1] = r.d[3 * i + 2] = 0.0f;
+        r.d[3 * i + i % 3] = i % 2 ? 1.0f : -1.0f;
+        r.o[3 * (i + 300) + i % 3] = i % 2 ? 10.0f : -10.0f;
+    }
+    const size_t begin = 2000, end = 29000, n = end - begin;
+    const OrderedRays ordered(r.batch, begin, end);
+    float lo[3], hi[3], scale[3];
+    for (int k = 0; k < 3; ++k) lo[k] = hi[k] = r.o[3 * begin + k];
+    for (size_t i = begin; i < end; ++i)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], r.o[3 * i + k]);
+            hi[k] = std::max(hi[k], r.o[3 * i + k]);
+        }
+    for (int k = 0; k < 3; ++k) scale[k] = hi[k] > lo[k] ? 32.0f / (hi[k] - lo[k]) : 0.0f;
+    const auto cell = [](float c) {
+        c = c > 0.0f ? c : 0.0f;
+        return uint32_t(int32_t(c < 31.0f ? c : 31.0f));
+    };
+    std::vector<std::pair<uint32_t, size_t>> keyed(n);
+    for (size_t j = 0; j < n; ++j) {
+        const float* o = &r.o[3 * (begin + j)];
+        const float* d = &r.d[3 * (begin + j)];
+        const float m = std::max(std::max(std::fabs(d[0]), std::fabs(d[1])), std::fabs(d[2]));
+        const uint32_t cells[6] = {cell((o[0] - lo[0]) * scale[0]), cell((o[1] - lo[1]) * scale[1]),
+                                   cell((o[2] - lo[2]) * scale[2]), cell(d[0] * (16.0f / m) + 16.0f),
+                                   cell(d[1] * (16.0f / m) + 16.0f), cell(d[2] * (16.0f / m) + 16.0f)};
+        uint32_t key = 0;
+        for (int bit = 4; bit >= 0; --bit)
+            for (int c = 0; c < 6; ++c) key = key << 1 | ((cells[c] >> bit) & 1u);
+        keyed[j] = {key, begin + j};
+    }
+    std::stable_sort(keyed.begin(), keyed.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (size_t i = 0; i < n; ++i) ASSERT_EQ(source_of(ordered, i), keyed[i].second) << i;
 }
 
 TEST(OrderedRays, ScatterPutsEachHitAtItsRay) {

@@ -17,14 +17,18 @@ bool order_rays(const RayBatch& rays, RayOrder order) {
 namespace {
 
 // A coordinate's cell, 0 to 31, with its five bits spread to every sixth
-// bit (bit i to bit 6 i): its share of the six-way Morton code. Plain
-// arithmetic without a table or a branch, so that the keys' loop
-// vectorizes. A NaN or a value below 0 takes cell 0.
+// bit (bit i to bit 6 i): its share of the six-way Morton code. Without a
+// table or a branch: the multiplication lays five copies of the cell side
+// by side, 5 bits apart (they do not overlap, so nothing carries), and copy
+// i holds bit i at 5 i + i = 6 i, which the mask keeps. A NaN or a value
+// below 0 takes cell 0.
 inline uint32_t spread_cell(float c) {
     c = c > 0.0f ? c : 0.0f;
     // Through int32_t: SSE2 converts floats to signed integers only.
     const uint32_t x = uint32_t(int32_t(c < 31.0f ? c : 31.0f));
-    return (x & 1u) | (x & 2u) << 5 | (x & 4u) << 10 | (x & 8u) << 15 | (x & 16u) << 20;
+    constexpr uint32_t kCopies = 1u | 1u << 5 | 1u << 10 | 1u << 15 | 1u << 20;
+    constexpr uint32_t kEverySixth = 1u | 1u << 6 | 1u << 12 | 1u << 18 | 1u << 24;
+    return (x * kCopies) & kEverySixth;
 }
 
 // Fresh memory costs a page fault per 4 KiB on first touch, which for a
