@@ -205,8 +205,8 @@ def trace_flags(cull, counters, packets) -> tuple[bool, bool, bool]:
     return bool(cull), bool(counters), bool(packets)
 
 
-# Tree.intersect's ray_order: how the hits-only path of a kd or BSP tree
-# orders a batch (core: RayOrder in trace/traverse.hpp). "spatial" traces an
+# Tree.intersect's (and InstancedTree.intersect's) ray_order: how the
+# single-ray hits-only path orders a batch (core: RayOrder in trace/traverse.hpp). "spatial" traces an
 # incoherent batch sorted by the rays' origins and directions, "given" in
 # the caller's order; the hits are the same.
 RAY_ORDERS = ("spatial", "given")

@@ -168,6 +168,20 @@ TEST(OrderedRays, ScatterPutsEachHitAtItsRay) {
     }
 }
 
+TEST(OrderedRays, ScatterPutsAnIntColumnAtItsRays) {
+    // The instanced path's instance index goes back like the hits.
+    RandomRays r(9000);
+    const size_t begin = 500, end = 8500;
+    const OrderedRays ordered(r.batch, begin, end);
+    ASSERT_EQ(ordered.count(), end - begin);
+    std::vector<int32_t> column(end - begin);
+    for (size_t i = 0; i < column.size(); ++i) column[i] = int32_t(3 * source_of(ordered, i) + 1);
+    std::vector<int32_t> out(9000, -5);
+    ordered.scatter(column.data(), out.data());
+    for (size_t i = 0; i < out.size(); ++i)
+        EXPECT_EQ(out[i], i >= begin && i < end ? int32_t(3 * i + 1) : -5) << i;
+}
+
 TEST(OrderedRays, WhichBatchesAreSorted) {
     RandomRays r(kOrderMinRays);
     EXPECT_TRUE(order_rays(r.batch, RayOrder::Spatial));

@@ -134,8 +134,11 @@ struct InstanceHits {
 };
 
 // Closest hits: hits.prim is the triangle's index in its mesh.
+// Without counter arrays an incoherent batch is traced in spatial order
+// (`order`, as intersect()'s in traverse.hpp): the same hits.
 void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
-                         InstanceHits& extra, int threads, Progress* progress = nullptr);
+                         InstanceHits& extra, int threads, Progress* progress = nullptr,
+                         RayOrder order = RayOrder::Spatial);
 
 // The same hits, hits only (no counter arrays): groups of consecutive rays
 // walk the top level together and go through each mesh tree's packet kernel

@@ -87,9 +87,14 @@ SANITIZER_FILES = {
 # paired traces (they run unsanitized in the core suite).
 SANITIZER_SLOW_ON_PARAMS = {
     "test_tree_geometry.py::test_cells_of_a_level_tile_the_root_box": ("None-",),
+    # Its rays come from 278,280 flattened triangles in numpy; the touching
+    # cubes run every method through the same C++.
+    "test_ray_order.py::test_spatial_order_in_an_instanced_scene_gives_the_counting_paths_hits":
+        ("transformed-",),
 }
 SANITIZER_SLOW_TESTS = {
     "test_ray_order.py::test_a_batch_of_two_windows_comes_back_in_the_callers_order",
+    "test_ray_order.py::test_an_instanced_batch_of_two_windows_comes_back_in_the_callers_order",
     "test_lab.py::test_bench_cull_pairs_culling_on_with_off",
     "test_lab.py::test_bench_writes_a_row_per_scene_and_method",
 }

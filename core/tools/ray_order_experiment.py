@@ -9,7 +9,13 @@ timed calls). Prints one Markdown row per scene: the medians over the rounds
 of each round's ratios (docs/performance.md, "Incoherent rays in spatial
 order"), and whether both of the tree's orders gave the same hits.
 
+With --worlds, the same for instanced scenes (bsplab.instanced_scenes.WORLDS,
+random rays in the instances' box): the two levels in the given order and
+sorted, and whether both gave the same hits and instances (no Embree: most
+worlds are too large to flatten).
+
     python core/tools/ray_order_experiment.py --scenes bunny sibenik [--method kd]
+    python core/tools/ray_order_experiment.py --scenes --worlds grid25 city --method bvh
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ import time
 import numpy as np
 
 import bsplab
-from bsplab import oracle, scenes, workloads
+from bsplab import instanced_scenes, oracle, scenes, workloads
 
 
 def spatial_order(o: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -42,7 +48,8 @@ def spatial_order(o: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", nargs="+", default=["bunny", "sibenik"])
+    p.add_argument("--scenes", nargs="*", default=["bunny", "sibenik"])
+    p.add_argument("--worlds", nargs="*", default=[])
     p.add_argument("--method", default="kd")
     p.add_argument("--rays", type=int, default=250_000)
     p.add_argument("--rounds", type=int, default=7)
@@ -76,6 +83,40 @@ def main() -> None:
         print(f"| {name} | {a.method} | {np.median(g / e):.2f} | {np.median(s / e):.2f} | "
               f"{np.median(s / g):.3f} | {np.median(es / e):.3f} | {np.median(s / es):.2f} | "
               f"{same} |", flush=True)
+    if a.worlds:
+        print("\n| world | method | sorted ÷ given | same hits |\n|---|---|---:|---|")
+    for world in a.worlds:
+        instanced_world(world, a.method, a.rays, a.rounds)
+
+
+def instanced_world(world: str, method: str, rays: int, rounds: int) -> None:
+    meshes, idx, mats = instanced_scenes.WORLDS[world]()
+    scene = bsplab.build_instanced(meshes, idx, mats, method)
+    # The instances' box: the mesh boxes' corners carried by each matrix.
+    corners = []
+    for m, a in zip(idx, np.asarray(mats, np.float64)[:, :3, :]):
+        lo, hi = np.asarray(meshes[m], np.float64).reshape(-1, 3).min(0), \
+            np.asarray(meshes[m], np.float64).reshape(-1, 3).max(0)
+        box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+        corners.append(box @ a[:, :3].T + a[:, 3])
+    corners = np.concatenate(corners)
+    rng = np.random.default_rng(1)
+    o = rng.uniform(corners.min(0), corners.max(0), (rays, 3)).astype(np.float32)
+    d = rng.normal(size=(rays, 3))
+    d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+    times = {"given": [], "sorted": []}
+    hits = {}
+    for _ in range(rounds):
+        for key in times:
+            start = time.perf_counter()
+            hits[key] = scene.intersect(o, d, threads=1, counters=False,
+                                        ray_order="given" if key == "given" else "spatial")
+            times[key].append(time.perf_counter() - start)
+    g, s = np.array(times["given"]), np.array(times["sorted"])
+    same = all(np.array_equal(hits["given"][c], hits["sorted"][c])
+               for c in ("t", "prim", "u", "v", "instance"))
+    print(f"| {world} | {method} | {np.median(s / g):.3f} | {same} |", flush=True)
 
 
 if __name__ == "__main__":

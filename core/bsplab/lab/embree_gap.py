@@ -46,10 +46,10 @@ def gap_spec(scenes: list[str], results_toml, **overrides) -> Spec:
 
 
 def _hits_only(tree, rays) -> Tracer:
-    """The hits-only path with the rays in the given order: a kd or BSP tree
-    would sort the random rays (ray_order="spatial", the default), the BVH
-    never does, and the split needs the two on the same kernel. What the
-    spatial order buys is benchmark.md's (kd in both orders)."""
+    """The hits-only path with the rays in the given order: every tree would
+    sort the random rays (ray_order="spatial", the default), and the split
+    compares the structures' walks alone. What the spatial order buys is
+    benchmark.md's (kd in both orders)."""
     return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
                                          threads=1, counters=False, ray_order="given"))
 
@@ -207,9 +207,9 @@ def section(gap: dict | None, number: int) -> list[str]:
         f"Traced: `{gap.get('command', '?')}`, {gap['width']}×{gap['height']} primary rays "
         f"from the results spec's camera and as many random rays (origins in the scene box, "
         f"directions on the sphere), {gap['rounds']} paired rounds with Embree, one thread, "
-        f"the hits-only path with the rays in the given order (`ray_order=\"given\"`: the kd "
-        f"and BSP trees' spatial order of incoherent rays, which the BVH does not take, would "
-        f"put a sort between the two walks; benchmark.md shows kd in both orders); started "
+        f"the hits-only path with the rays in the given order (`ray_order=\"given\"`: the "
+        f"split compares the walks alone, without the spatial order every tree would give "
+        f"incoherent rays; benchmark.md shows kd in both orders); started "
         f"{gap.get('started', '?')}, "
         f"{gap.get('minutes', 0):.1f} min.", "",
         "Our BVH is a binned-SAH hierarchy collapsed into 8-wide nodes (one AVX test for "

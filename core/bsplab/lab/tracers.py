@@ -15,7 +15,6 @@ from typing import Callable
 
 import numpy as np
 
-from ..tree import Tree
 from .spec import Spec
 from .timing import Tracer
 
@@ -48,14 +47,11 @@ def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
                                          threads=1, counters=False))
 
 
-def _single_rays_in_given_order(tree, rays: Rays, spec: Spec) -> Tracer | None:
+def _single_rays_in_given_order(tree, rays: Rays, spec: Spec) -> Tracer:
     """The hits-only single rays in the caller's order (`ray_order="given"`):
     the speed the spatial order (core/src/trace/ray_order.hpp) is measured
-    against, on the rays it sorts. None for a BVH, which keeps the given
-    order either way, and for an instanced scene's two levels, which take
-    none (InstancedTree.intersect has no ray_order)."""
-    if not isinstance(tree, Tree) or tree.structure == "bvh":
-        return None
+    against, on the rays it sorts, and the one walk on which trees are
+    compared with each other (report.py's kd ÷ BVH)."""
     return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
                                          threads=1, counters=False, ray_order="given"))
 

@@ -46,7 +46,8 @@ void intersect(const InstancedScene& scene, Vec3Array origins, Vec3Array directi
                FloatIn tmin, FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u,
                Out<float> v, Out<int32_t> instance, Counter steps, Counter general_steps,
                Counter tests, Counter culled, Counter box_tests, Counter top_steps,
-               Counter instance_visits, int threads, bool packets, Progress* progress) {
+               Counter instance_visits, int threads, bool packets, Progress* progress,
+               bool given_order) {
     const RayBatch rays = ray_batch(origins, directions, tmin, tmax);
     HitBatch hits = hit_batch(rays.count, t, prim, u, v, steps, general_steps, tests, culled,
                               box_tests);
@@ -57,7 +58,8 @@ void intersect(const InstancedScene& scene, Vec3Array origins, Vec3Array directi
     if (packets)
         intersect_instanced_packets(scene, rays, hits, extra, threads, progress);
     else
-        intersect_instanced(scene, rays, hits, extra, threads, progress);
+        intersect_instanced(scene, rays, hits, extra, threads, progress,
+                            given_order ? RayOrder::Given : RayOrder::Spatial);
 }
 
 nb::dict stats(const InstancedScene& scene) {
@@ -127,7 +129,8 @@ void bind_instanced(nb::module_& m) {
     m.def("intersect_instanced", &intersect, "scene"_a, "origins"_a, "directions"_a, "tmin"_a,
           "tmax"_a, "t"_a, "prim"_a, "u"_a, "v"_a, "instance"_a, "steps"_a.none(),
           "general_steps"_a.none(), "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(),
-          "top_steps"_a.none(), "instance_visits"_a.none(), "threads"_a, "packets"_a, "progress"_a.none());
+          "top_steps"_a.none(), "instance_visits"_a.none(), "threads"_a, "packets"_a, "progress"_a.none(),
+          "given_order"_a = false);
 }
 
 }  // namespace bsp::bindings

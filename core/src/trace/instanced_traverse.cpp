@@ -17,6 +17,7 @@
 #include "instanced.hpp"
 #include "parallel.hpp"
 #include "trace/cpu_dispatch.hpp"
+#include "trace/ray_order.hpp"
 #include "trace/kernels/kernel_set.hpp"
 #include "trace/kernels/tree_view.hpp"
 
@@ -150,7 +151,7 @@ struct Closest {
             flat = hflat;
         }
     }
-    void write(HitBatch& hits, InstanceHits& extra, size_t i) const {
+    void write(const HitBatch& hits, const InstanceHits& extra, size_t i) const {
         hits.t[i] = prim >= 0 ? t : kInf;
         hits.prim[i] = prim;
         hits.u[i] = u;
@@ -171,7 +172,7 @@ float scene_max_of(const InstancedScene& scene) {
 }  // namespace
 
 void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
-                         InstanceHits& extra, int threads, Progress* progress) {
+                         InstanceHits& extra, int threads, Progress* progress, RayOrder order) {
     const bool counting = hits.steps != nullptr;
     if (counting != (extra.top_steps != nullptr) ||
         (counting && (!hits.general_steps || !hits.tests || !hits.culled || !hits.box_tests ||
@@ -184,133 +185,159 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
     const TopLevel::Pair* pairs = scene.top.pairs.data();
     const float scene_max = scene_max_of(scene);
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
-    parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
-        if (progress) progress->check();
-        for (size_t i = begin; i < end; ++i) {
-            const float* of = rays.origins + 3 * i;
-            const float* df = rays.directions + 3 * i;
-            const float tmin = rays.tmin[i * rays.tmin_stride];
-            const float tmax = rays.tmax[i * rays.tmax_stride];
-            const double o[3] = {of[0], of[1], of[2]}, d[3] = {df[0], df[1], df[2]};
-            const TopRay ray(of, df, scene_max);
-            Closest best;
-            best.t = tmax;
-            uint32_t top_steps = 0, visits = 0, steps = 0, general = 0, tests = 0, culled = 0,
-                     box_tests = 0;
-            struct Entry {
-                TopLevel::Link node;
-                float t0;
-            } stack[kTopStack];
-            int top = 0;
-            float t0 = tmin, t1 = tmax;
-            // The walk visits the nearer entered child at once and pushes
-            // the farther: the order of popping the nearer off the stack
-            // (what trace_path replays), without the store and the reload,
-            // and with one branch on the pair's mask where two on its floats
-            // mispredicted about eight times a ray (callgrind, city). A
-            // child's link comes with its pair's boxes (TopLevel::Pair).
-            TopLevel::Link n = scene.top.root_link;
-            // Both entered: the nearer (A on a tie) next, the other pushed;
-            // one entered: that one next. In integer arithmetic, not
-            // branches: which child is nearer is a coin toss to the predictor.
-            const auto descend = [&](const TopLevel::Pair& p, int mask, float a0, float b0) {
-                const unsigned a_in = unsigned(mask) & 1u, b_in = unsigned(mask) >> 1;
-                const unsigned near_b = b_in & ((a_in ^ 1u) | unsigned(b0 < a0));
-                const float entry[2] = {a0, b0};  // indexed: no branch
-                stack[top] = {p.link[near_b ^ 1u], entry[near_b ^ 1u]};
-                top += int(a_in & b_in);
-                return near_b;
-            };
-            bool live = !scene.top.empty() && ray.clip(scene.top.root, t0, t1);
-            while (live) {
-                ++top_steps;
-                if (!n.is_leaf()) {
-                    // Two levels a step: the node's pair and both children's
-                    // pairs tested at once (a leaf child stands in pair 0,
-                    // its result unused), so the child's test does not wait
-                    // on the node's. One test a level, the walk was bound by
-                    // the chain load -> test -> choice -> load, not by its
-                    // instructions: 8 % fewer of them (the pair layout) left
-                    // city bvh's primary rays at 422 ns; tested ahead they
-                    // take 365 ns with 10 % more instructions (callgrind
-                    // 2,896 -> 3,172 a ray). The visits, their order and
-                    // every test's result are the same: no leaf comes
-                    // between a node and its child, so best.t is too.
-                    const TopLevel::Pair& p = TopLevel::pair_of(pairs, n.left());
-                    const TopLevel::Pair* child[2] = {
-                        &TopLevel::pair_of(pairs, p.link[0].is_leaf() ? 1u : p.link[0].left()),
-                        &TopLevel::pair_of(pairs, p.link[1].is_leaf() ? 1u : p.link[1].left())};
-                    float a0, b0, ca0[2], cb0[2];
-                    const int mask = ray.pair(p, tmin, best.t, a0, b0);
-                    const int cmask[2] = {ray.pair(*child[0], tmin, best.t, ca0[0], cb0[0]),
-                                          ray.pair(*child[1], tmin, best.t, ca0[1], cb0[1])};
-                    if (mask != 0) {
-                        const unsigned c = descend(p, mask, a0, b0);
-                        n = p.link[c];
-                        if (n.is_leaf()) continue;
-                        ++top_steps;  // the child, already tested
-                        if (cmask[c] != 0) {
-                            n = child[c]->link[descend(*child[c], cmask[c], ca0[c], cb0[c])];
-                            continue;
+    // A batch (the caller's, or a window of it in spatial order) traced
+    // ray by ray on the threads; the captures name what every batch shares.
+    const auto trace_batch = [&scene, &bottom, pairs, scene_max, counting, threads, progress,
+                              units_per_ray](const RayBatch& rays, const HitBatch& hits,
+                                             const InstanceHits& extra) {
+        parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
+            if (progress) progress->check();
+            for (size_t i = begin; i < end; ++i) {
+                const float* of = rays.origins + 3 * i;
+                const float* df = rays.directions + 3 * i;
+                const float tmin = rays.tmin[i * rays.tmin_stride];
+                const float tmax = rays.tmax[i * rays.tmax_stride];
+                const double o[3] = {of[0], of[1], of[2]}, d[3] = {df[0], df[1], df[2]};
+                const TopRay ray(of, df, scene_max);
+                Closest best;
+                best.t = tmax;
+                uint32_t top_steps = 0, visits = 0, steps = 0, general = 0, tests = 0, culled = 0,
+                         box_tests = 0;
+                struct Entry {
+                    TopLevel::Link node;
+                    float t0;
+                } stack[kTopStack];
+                int top = 0;
+                float t0 = tmin, t1 = tmax;
+                // The walk visits the nearer entered child at once and pushes
+                // the farther: the order of popping the nearer off the stack
+                // (what trace_path replays), without the store and the reload,
+                // and with one branch on the pair's mask where two on its floats
+                // mispredicted about eight times a ray (callgrind, city). A
+                // child's link comes with its pair's boxes (TopLevel::Pair).
+                TopLevel::Link n = scene.top.root_link;
+                // Both entered: the nearer (A on a tie) next, the other pushed;
+                // one entered: that one next. In integer arithmetic, not
+                // branches: which child is nearer is a coin toss to the predictor.
+                const auto descend = [&](const TopLevel::Pair& p, int mask, float a0, float b0) {
+                    const unsigned a_in = unsigned(mask) & 1u, b_in = unsigned(mask) >> 1;
+                    const unsigned near_b = b_in & ((a_in ^ 1u) | unsigned(b0 < a0));
+                    const float entry[2] = {a0, b0};  // indexed: no branch
+                    stack[top] = {p.link[near_b ^ 1u], entry[near_b ^ 1u]};
+                    top += int(a_in & b_in);
+                    return near_b;
+                };
+                bool live = !scene.top.empty() && ray.clip(scene.top.root, t0, t1);
+                while (live) {
+                    ++top_steps;
+                    if (!n.is_leaf()) {
+                        // Two levels a step: the node's pair and both children's
+                        // pairs tested at once (a leaf child stands in pair 0,
+                        // its result unused), so the child's test does not wait
+                        // on the node's. One test a level, the walk was bound by
+                        // the chain load -> test -> choice -> load, not by its
+                        // instructions: 8 % fewer of them (the pair layout) left
+                        // city bvh's primary rays at 422 ns; tested ahead they
+                        // take 365 ns with 10 % more instructions (callgrind
+                        // 2,896 -> 3,172 a ray). The visits, their order and
+                        // every test's result are the same: no leaf comes
+                        // between a node and its child, so best.t is too.
+                        const TopLevel::Pair& p = TopLevel::pair_of(pairs, n.left());
+                        const TopLevel::Pair* child[2] = {
+                            &TopLevel::pair_of(pairs,
+                                               p.link[0].is_leaf() ? 1u : p.link[0].left()),
+                            &TopLevel::pair_of(pairs,
+                                               p.link[1].is_leaf() ? 1u : p.link[1].left())};
+                        float a0, b0, ca0[2], cb0[2];
+                        const int mask = ray.pair(p, tmin, best.t, a0, b0);
+                        const int cmask[2] = {ray.pair(*child[0], tmin, best.t, ca0[0], cb0[0]),
+                                              ray.pair(*child[1], tmin, best.t, ca0[1], cb0[1])};
+                        if (mask != 0) {
+                            const unsigned c = descend(p, mask, a0, b0);
+                            n = p.link[c];
+                            if (n.is_leaf()) continue;
+                            ++top_steps;  // the child, already tested
+                            if (cmask[c] != 0) {
+                                n = child[c]->link[descend(*child[c], cmask[c], ca0[c], cb0[c])];
+                                continue;
+                            }
+                        }
+                    } else {
+                        for (uint32_t k = 0; k < n.count(); ++k) {
+                            const uint32_t id = scene.top_order[n.first + k];
+                            const Instance& inst = scene.instances[id];
+                            float ob[3], db[3];
+                            if (!object_ray(inst, o, d, ob, db)) continue;
+                            ++visits;
+                            const float limit = best.limit(tmax);
+                            float t, u, v;
+                            int32_t prim;
+                            uint32_t c[5] = {0, 0, 0, 0, 0};
+                            RayBatch one;
+                            one.origins = ob;
+                            one.directions = db;
+                            one.tmin = &tmin;
+                            one.tmax = &limit;
+                            one.count = 1;
+                            HitBatch out{&t, &prim, &u, &v};
+                            if (counting) {
+                                out.steps = c;
+                                out.general_steps = c + 1;
+                                out.tests = c + 2;
+                                out.culled = c + 3;
+                                out.box_tests = c + 4;
+                            }
+                            const Bottom& b = bottom[inst.mesh];
+                            b.trace(b.view, one, out, 0, 1);
+                            steps += c[0], general += c[1], tests += c[2], culled += c[3];
+                            box_tests += c[4];
+                            if (prim >= 0)
+                                best.take(t, u, v, prim, id,
+                                          scene.flat_offset[id] + uint64_t(prim));
                         }
                     }
-                } else {
-                    for (uint32_t k = 0; k < n.count(); ++k) {
-                        const uint32_t id = scene.top_order[n.first + k];
-                        const Instance& inst = scene.instances[id];
-                        float ob[3], db[3];
-                        if (!object_ray(inst, o, d, ob, db)) continue;
-                        ++visits;
-                        const float limit = best.limit(tmax);
-                        float t, u, v;
-                        int32_t prim;
-                        uint32_t c[5] = {0, 0, 0, 0, 0};
-                        RayBatch one;
-                        one.origins = ob;
-                        one.directions = db;
-                        one.tmin = &tmin;
-                        one.tmax = &limit;
-                        one.count = 1;
-                        HitBatch out{&t, &prim, &u, &v};
-                        if (counting) {
-                            out.steps = c;
-                            out.general_steps = c + 1;
-                            out.tests = c + 2;
-                            out.culled = c + 3;
-                            out.box_tests = c + 4;
-                        }
-                        const Bottom& b = bottom[inst.mesh];
-                        b.trace(b.view, one, out, 0, 1);
-                        steps += c[0], general += c[1], tests += c[2], culled += c[3];
-                        box_tests += c[4];
-                        if (prim >= 0)
-                            best.take(t, u, v, prim, id, scene.flat_offset[id] + uint64_t(prim));
+                    // The next pushed box entered before the closest hit (equal
+                    // t stays: the tie rule decides between instances).
+                    live = false;
+                    while (top > 0) {
+                        const Entry e = stack[--top];
+                        if (e.t0 > best.t) continue;
+                        n = e.node;
+                        live = true;
+                        break;
                     }
                 }
-                // The next pushed box entered before the closest hit (equal
-                // t stays: the tie rule decides between instances).
-                live = false;
-                while (top > 0) {
-                    const Entry e = stack[--top];
-                    if (e.t0 > best.t) continue;
-                    n = e.node;
-                    live = true;
-                    break;
+                best.write(hits, extra, i);
+                if (counting) {
+                    hits.steps[i] = steps;
+                    hits.general_steps[i] = general;
+                    hits.tests[i] = tests;
+                    hits.culled[i] = culled;
+                    hits.box_tests[i] = box_tests;
+                    extra.top_steps[i] = top_steps;
+                    extra.instance_visits[i] = visits;
                 }
             }
-            best.write(hits, extra, i);
-            if (counting) {
-                hits.steps[i] = steps;
-                hits.general_steps[i] = general;
-                hits.tests[i] = tests;
-                hits.culled[i] = culled;
-                hits.box_tests[i] = box_tests;
-                extra.top_steps[i] = top_steps;
-                extra.instance_visits[i] = visits;
-            }
-        }
-        if (progress) progress->add(units_per_ray * (end - begin));
-    });
+            if (progress) progress->add(units_per_ray * (end - begin));
+        });
+    };
+    // The hits-only path traces an incoherent batch in windows of rays in
+    // their spatial order (ray_order.hpp), as Tree.intersect does: the same
+    // hits, the instance index written back with them. Neighbouring rays
+    // then enter the same instances and walk the same nodes of the top
+    // level and of the mesh trees (docs/instances.md has the gain).
+    if (counting || !order_rays(rays, order)) {
+        trace_batch(rays, hits, extra);
+        return;
+    }
+    std::vector<int32_t> instance(std::min(rays.count, kOrderWindow));
+    for (size_t begin = 0; begin < rays.count; begin += kOrderWindow) {
+        const OrderedRays ordered(rays, begin, std::min(rays.count, begin + kOrderWindow));
+        const InstanceHits ordered_extra{instance.data()};
+        trace_batch(ordered.rays(), ordered.hits(), ordered_extra);
+        ordered.scatter(hits);
+        ordered.scatter(instance.data(), extra.instance);
+    }
 }
 
 // Rays walked together through the top level on the packet path.

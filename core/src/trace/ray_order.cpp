@@ -156,4 +156,8 @@ void OrderedRays::scatter(const HitBatch& out) const {
     }
 }
 
+void OrderedRays::scatter(const int32_t* ordered, int32_t* out) const {
+    for (size_t i = 0; i < count_; ++i) out[begin_ + order_[i]] = ordered[i];
+}
+
 }  // namespace bsp

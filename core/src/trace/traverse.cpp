@@ -58,8 +58,8 @@ void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatc
     run(trace, make_tree_view(tree), rays, out, threads, progress, units_per_ray);
 }
 
-// The kd/BSP hits-only path: an incoherent batch is traced in windows of
-// rays in their spatial order (ray_order.hpp), the same hits.
+// The single-ray hits-only path: an incoherent batch is traced in windows
+// of rays in their spatial order (ray_order.hpp), the same hits.
 void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
                    const HitBatch& out, int threads, Progress* progress, RayOrder order) {
     if (!order_rays(rays, order)) {
@@ -85,10 +85,10 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
         throw std::invalid_argument("intersect: give all five counter arrays or none");
     if (tree.structure == Structure::Bvh) {
         // No culling: a BVH leaf's box is already its triangles' tight box.
-        // Rays in their given order: the BVH's walk gained nothing from the
-        // spatial order that pays for sorting (docs/performance.md).
-        run(given != 0 ? selected_kernels().bvh_single_ray[1] : bvh_hits_kernel(), tree, rays,
-            hits, threads, progress);
+        if (given != 0)
+            run(selected_kernels().bvh_single_ray[1], tree, rays, hits, threads, progress);
+        else
+            run_hits_only(bvh_hits_kernel(), tree, rays, hits, threads, progress, order);
         return;
     }
     // The kd/BSP kernels do no box tests.

@@ -243,9 +243,12 @@ def check_instanced_spec(case: dict) -> None:
     it = bsplab.build_instanced(meshes, idx, mats, method, **opts)
     flat = it.flatten()
     rays = agreement.FamilyRays(flat, RAYS_PER_FAMILY // 2, seed=len(flat))
+    checked = {}
     for (name, (o, d, tmax, ref)), packets in itertools.product(rays.rays.items(),
                                                                  (False, True)):
         h = it.intersect(o, d, tmax=tmax, counters=False, packets=packets)
+        if not packets:
+            checked[name] = h
         ours = {"t": h["t"], "prim": h["flat_prim"].astype(np.int32)}
         slack = np.maximum(it.transform_slack(o, d, h["t"], h["instance"]),
                            it.transform_slack(o, d, ref["t"], it.instance_of(ref["prim"])))
@@ -258,6 +261,28 @@ def check_instanced_spec(case: dict) -> None:
             leak = oracle.leaks(ours, ref, triangles=flat, origins=o, directions=d, tmax=tmax,
                                 slack=slack)
             assert_none(leak, f"{name} rays leak", label, case, o, d, ours, ref)
+    check_sorted_instanced_batch(it, rays, checked, f"{method} {opts}", case)
+
+
+def check_sorted_instanced_batch(it, rays, checked: dict, label: str, case: dict) -> None:
+    """As check_sorted_batch, on an instanced scene: every family's rays,
+    repeated and shuffled into one batch of more than kOrderMinRays, which
+    the single-ray hits-only path traces in spatial order; each ray must get
+    the hit and instance Embree has just checked, bit for bit."""
+    names = list(rays.rays)
+    total = sum(len(rays.rays[n][0]) for n in names)
+    copies = -(-4200 // max(total, 1))  # past ray_order.hpp's kOrderMinRays
+    o = np.concatenate([rays.rays[n][0] for n in names] * copies)
+    d = np.concatenate([rays.rays[n][1] for n in names] * copies)
+    tmax = np.concatenate([rays.rays[n][2] for n in names] * copies)
+    keys = ("t", "prim", "u", "v", "instance")
+    want = {k: np.concatenate([checked[n][k] for n in names] * copies) for k in keys}
+    perm = np.random.default_rng(len(o)).permutation(len(o))
+    got = it.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False)
+    differ = np.flatnonzero(np.any([got[k].view(np.uint32) != want[k][perm].view(np.uint32)
+                                    for k in keys], axis=0))
+    assert_none(differ, "instanced rays differ in spatial order", label, case, o[perm],
+                d[perm], got, {k: v[perm] for k, v in want.items()})
 
 
 @settings(max_examples=examples(40), deadline=None, derandomize=not LONG,

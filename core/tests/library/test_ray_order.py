@@ -1,18 +1,21 @@
 """Incoherent batches traced in spatial order (core/src/trace/ray_order.hpp,
-Tree.intersect's ray_order): the hits-only path of a kd or BSP tree sorts an
-incoherent batch of 4,096 rays or more by the rays' origins and directions,
-traces it in that order and writes the hits back in the caller's order. The
-hits must be the counting path's (which keeps the given order) bit for bit
-on every ray family, method, limit, thread count and window, and Embree's;
-and only incoherent batches may take the sorted path."""
+Tree.intersect's and InstancedTree.intersect's ray_order): the single-ray
+hits-only path of every tree, and of an instanced scene, sorts an incoherent
+batch of 4,096 rays or more by the rays' origins and directions, traces it
+in that order and writes the hits (and instances) back in the caller's
+order. The hits must be the counting path's (which keeps the given order)
+bit for bit on every ray family, method, limit, thread count and window,
+and Embree's; and only incoherent batches may take the sorted path."""
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 import pytest
 
 import bsplab
-from bsplab import oracle, ray_families, workloads
+from bsplab import instanced_scenes, oracle, ray_families, workloads
 
 from conftest import SCENE_IDS, load_scene
 from test_paths_agree import assert_same, tilted_fan
@@ -75,7 +78,7 @@ def test_spatial_order_gives_the_counting_paths_hits_on_every_family(scene, meth
                     culled, f"{scene} {method} spatial order, culled")
 
 
-@pytest.mark.parametrize("method", ["kd", "bsp_wn+kd", "bsp_random"])
+@pytest.mark.parametrize("method", ["kd", "bsp_wn+kd", "bsp_random", "bvh"])
 def test_spatial_order_agrees_with_embree_on_a_shared_mesh(method):
     shared = [s for s in SCENE_IDS if s.startswith("shared:")]
     if not shared:
@@ -160,3 +163,82 @@ def test_a_sorted_batch_reports_progress_and_can_be_cancelled():
     cancelled.cancel()
     with pytest.raises(bsplab.Cancelled):
         tree.intersect(o, d, counters=False, progress=cancelled)
+
+
+# Instanced scenes (InstancedTree.intersect): the single-ray hits-only path
+# sorts an incoherent batch too, and writes each ray's instance back with
+# its hit.
+
+@functools.lru_cache(maxsize=None)
+def world_families(world: str):
+    """The shuffled families of a world's flattened scene (made once: the
+    transformed world flattens to 278,280 triangles)."""
+    meshes, idx, mats = instanced_scenes.TEST_SCENES[world]()
+    return shuffled_families(instanced_scenes.flatten(meshes, idx, mats), 400)
+
+
+def build_world(world: str, method: str):
+    meshes, idx, mats = instanced_scenes.TEST_SCENES[world]()
+    options = {"k": 4} if "k" in bsplab.methods()[method]["params"] else {}
+    return bsplab.build_instanced(meshes, idx, mats, method, **options)
+
+
+def assert_same_instanced(a: dict, b: dict, what: str) -> None:
+    assert_same(a, b, what)
+    assert np.array_equal(a["instance"], b["instance"]), what
+    assert np.array_equal(a["flat_prim"], b["flat_prim"]), what
+
+
+# Every method on the touching cubes (shared faces, edges and corners
+# between instances); three on the transformed world (rotations, mirrors,
+# shears; a large fan).
+INSTANCED_CASES = ([("touching", m) for m in METHODS] +
+                   [("transformed", m) for m in ("kd", "bsp_wn+kd", "bvh")])
+
+
+@pytest.mark.parametrize("world,method", INSTANCED_CASES)
+def test_spatial_order_in_an_instanced_scene_gives_the_counting_paths_hits(world, method):
+    it = build_world(world, method)
+    o, d, tmin, tmax = world_families(world)
+    assert len(o) >= MIN_RAYS and orders(o, d), "the batch must take the sorted path"
+    counted = it.intersect(o, d, tmin=tmin, tmax=tmax)
+    assert (counted["instance"] >= 0).sum() > len(o) // 10, "too few hits to tell anything"
+    assert len(np.unique(counted["instance"])) > 4, "hits on too few instances"
+    for threads in (1, 2):
+        assert_same_instanced(it.intersect(o, d, tmin=tmin, tmax=tmax, counters=False,
+                                           threads=threads),
+                              counted, f"{world} {method} spatial order, {threads} threads")
+    assert_same_instanced(it.intersect(o, d, tmin=tmin, tmax=tmax, counters=False,
+                                       ray_order="given"),
+                          counted, f"{world} {method} given order")
+    counted = it.intersect(o, d, tmax=2.0)
+    assert_same_instanced(it.intersect(o, d, tmax=2.0, counters=False), counted,
+                          f"{world} {method} spatial order, one tmax")
+
+
+def test_an_instanced_batch_of_two_windows_comes_back_in_the_callers_order():
+    it = build_world("transformed", "kd")
+    flat = it.flatten()
+    o, d = workloads.random_rays(flat, WINDOW + 5000, seed=12)
+    tmax = np.random.default_rng(12).uniform(0.5, 6.0, len(o)).astype(np.float32)
+    assert orders(o, d) and orders(o[WINDOW:], d[WINDOW:])
+    counted = it.intersect(o, d, tmax=tmax)
+    assert 0 < (counted["instance"] >= 0).sum() < len(o)
+    assert_same_instanced(it.intersect(o, d, tmax=tmax, counters=False, threads=2), counted,
+                          "two windows")
+
+
+def test_an_instanced_sorted_batch_reports_progress_and_can_be_cancelled():
+    it = build_world("transformed", "bsp_wn+kd")
+    o, d = workloads.random_rays(it.flatten(), 3 * MIN_RAYS, seed=13)
+    assert orders(o, d)
+    p = bsplab.Progress()
+    assert_same_instanced(it.intersect(o, d, counters=False, progress=p), it.intersect(o, d),
+                          "with progress")
+    assert p.value == pytest.approx(1.0, abs=1e-3)
+    cancelled = bsplab.Progress()
+    cancelled.cancel()
+    with pytest.raises(bsplab.Cancelled):
+        it.intersect(o, d, counters=False, progress=cancelled)
+    with pytest.raises(ValueError, match="ray_order must be one of 'spatial', 'given'"):
+        it.intersect(o, d, counters=False, ray_order="sorted")
