@@ -393,8 +393,10 @@ class InstancedTree:
         depend on the segment's end (docs/instances.md). `ray_order` (the
         single-ray hits-only path, counters=False and packets=False): as
         Tree.intersect's, "spatial" traces an incoherent batch of 4,096 rays
-        or more sorted by the rays' origins and directions, "given" in the
-        caller's order; the same hits either way, in the caller's order. Leaf
+        or more sorted by the rays' origins and directions (unless every mesh
+        tree is a BVH, which keeps the given order as Tree.intersect's
+        does), "given" in the caller's order; the same hits either way, in
+        the caller's order. Leaf
         culling (`cull=True`) is not offered in two levels."""
         cull, counters, packets = checks.trace_flags(cull, counters, packets)
         given_order = checks.ray_order(ray_order)

@@ -91,7 +91,8 @@ class Tree:
         rays together, as many as `cpu_features()["packet_width"]`: the same
         hits again, bit for bit, and faster when consecutive rays are coherent
         (camera rays in tile order: `Camera.rays(w, h, order="tiles")`).
-        `ray_order` (the single-ray hits-only path): "spatial" traces an
+        `ray_order` (the single-ray hits-only path of a kd or BSP tree; the
+        BVH keeps the given order, docs/performance.md): "spatial" traces an
         incoherent batch of 4,096 rays or more - random or scattered rays,
         not a camera's nor rays cast from its hits in pixel order - sorted
         by the rays' origins and directions, so that neighbouring rays walk

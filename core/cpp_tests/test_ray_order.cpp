@@ -42,9 +42,9 @@ size_t source_of(const OrderedRays& ordered, size_t i) {
 }
 
 TEST(OrderedRays, HoldsEveryRayOnceWithItsOwnLimits) {
-    RandomRays r(20000);
-    const size_t begin = 3000, end = 17000;
-    const OrderedRays ordered(r.batch, begin, end);
+    RandomRays r(40000);
+    const size_t begin = 3000, end = 37000;
+    const OrderedRays ordered(r.batch, begin, end, 2);
     ASSERT_EQ(ordered.rays().count, end - begin);
     std::vector<int> seen(end, 0);
     for (size_t i = 0; i < end - begin; ++i) {
@@ -112,7 +112,6 @@ TEST(OrderedRays, OrderIsTheStableSortOfTheMortonKey) {
         r.o[3 * (i + 300) + i % 3] = i % 2 ? 10.0f : -10.0f;
     }
     const size_t begin = 2000, end = 29000, n = end - begin;
-    const OrderedRays ordered(r.batch, begin, end);
     float lo[3], hi[3], scale[3];
     for (int k = 0; k < 3; ++k) lo[k] = hi[k] = r.o[3 * begin + k];
     for (size_t i = begin; i < end; ++i)
@@ -140,13 +139,22 @@ TEST(OrderedRays, OrderIsTheStableSortOfTheMortonKey) {
     }
     std::stable_sort(keyed.begin(), keyed.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
-    for (size_t i = 0; i < n; ++i) ASSERT_EQ(source_of(ordered, i), keyed[i].second) << i;
+    // The same order on any number of threads (the box, the keys and the
+    // copy are made in chunks of kOrderChunk rays).
+    for (int threads : {1, 2, 3}) {
+        const OrderedRays ordered(r.batch, begin, end, threads);
+        for (size_t i = 0; i < n; ++i)
+            ASSERT_EQ(source_of(ordered, i), keyed[i].second) << i << " threads " << threads;
+        for (size_t i = 0; i < n; i += 97)
+            for (int k = 0; k < 3; ++k)
+                ASSERT_EQ(ordered.rays().origins[3 * i + k], r.o[3 * keyed[i].second + k]);
+    }
 }
 
 TEST(OrderedRays, ScatterPutsEachHitAtItsRay) {
-    RandomRays r(12000);
-    const size_t begin = 1000, end = 11000;
-    const OrderedRays ordered(r.batch, begin, end);
+    RandomRays r(40000);
+    const size_t begin = 1000, end = 39000;
+    const OrderedRays ordered(r.batch, begin, end, 3);
     const HitBatch& h = ordered.hits();
     for (size_t i = 0; i < end - begin; ++i) {
         const float src = float(source_of(ordered, i));
@@ -155,11 +163,11 @@ TEST(OrderedRays, ScatterPutsEachHitAtItsRay) {
         h.u[i] = src + 0.25f;
         h.v[i] = src + 0.5f;
     }
-    std::vector<float> t(12000, -1.0f), u(12000, -1.0f), v(12000, -1.0f);
-    std::vector<int32_t> prim(12000, -7);
+    std::vector<float> t(40000, -1.0f), u(40000, -1.0f), v(40000, -1.0f);
+    std::vector<int32_t> prim(40000, -7);
     HitBatch out{t.data(), prim.data(), u.data(), v.data()};
     ordered.scatter(out);
-    for (size_t i = 0; i < 12000; ++i) {
+    for (size_t i = 0; i < 40000; ++i) {
         const bool inside = i >= begin && i < end;
         EXPECT_EQ(t[i], inside ? float(i) : -1.0f) << i;
         EXPECT_EQ(prim[i], inside ? int32_t(i) : -7) << i;
@@ -170,13 +178,13 @@ TEST(OrderedRays, ScatterPutsEachHitAtItsRay) {
 
 TEST(OrderedRays, ScatterPutsAnIntColumnAtItsRays) {
     // The instanced path's instance index goes back like the hits.
-    RandomRays r(9000);
-    const size_t begin = 500, end = 8500;
-    const OrderedRays ordered(r.batch, begin, end);
+    RandomRays r(40000);
+    const size_t begin = 500, end = 38500;
+    const OrderedRays ordered(r.batch, begin, end, 2);
     ASSERT_EQ(ordered.count(), end - begin);
     std::vector<int32_t> column(end - begin);
     for (size_t i = 0; i < column.size(); ++i) column[i] = int32_t(3 * source_of(ordered, i) + 1);
-    std::vector<int32_t> out(9000, -5);
+    std::vector<int32_t> out(40000, -5);
     ordered.scatter(column.data(), out.data());
     for (size_t i = 0; i < out.size(); ++i)
         EXPECT_EQ(out[i], i >= begin && i < end ? int32_t(3 * i + 1) : -5) << i;

@@ -46,9 +46,9 @@ def gap_spec(scenes: list[str], results_toml, **overrides) -> Spec:
 
 
 def _hits_only(tree, rays) -> Tracer:
-    """The hits-only path with the rays in the given order: every tree would
-    sort the random rays (ray_order="spatial", the default), and the split
-    compares the structures' walks alone. What the spatial order buys is
+    """The hits-only path with the rays in the given order: a kd or BSP tree
+    would sort the random rays (ray_order="spatial", the default), the BVH
+    does not, and the split compares the structures' walks alone. What the spatial order buys is
     benchmark.md's (kd in both orders)."""
     return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
                                          threads=1, counters=False, ray_order="given"))
@@ -208,8 +208,8 @@ def section(gap: dict | None, number: int) -> list[str]:
         f"from the results spec's camera and as many random rays (origins in the scene box, "
         f"directions on the sphere), {gap['rounds']} paired rounds with Embree, one thread, "
         f"the hits-only path with the rays in the given order (`ray_order=\"given\"`: the "
-        f"split compares the walks alone, without the spatial order every tree would give "
-        f"incoherent rays; benchmark.md shows kd in both orders); started "
+        f"split compares the walks alone, without the spatial order a kd or BSP tree would "
+        f"give incoherent rays; benchmark.md shows kd in both orders); started "
         f"{gap.get('started', '?')}, "
         f"{gap.get('minutes', 0):.1f} min.", "",
         "Our BVH is a binned-SAH hierarchy collapsed into 8-wide nodes (one AVX test for "

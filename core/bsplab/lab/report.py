@@ -307,9 +307,10 @@ BENCH_COLUMNS = (
     "Embree (`rtcIntersect1` per ray through embreex, which times its own loop) in the "
     "same rounds: **hits-only**, one ray at a time without counters "
     "(`tree.intersect(o, d, threads=1, counters=False)`: the closest hits only, as "
-    "Embree needs; an incoherent batch - the random rays - is sorted into spatial order "
-    "first, `ray_order=\"spatial\"`); **given order**, the random rays on the same path "
-    "kept in the caller's order (`ray_order=\"given\"`); **packets**, primary rays in the camera's tile order traced in "
+    "Embree needs; a kd or BSP tree sorts an incoherent batch - the random rays - into "
+    "spatial order first, `ray_order=\"spatial\"`, the BVH keeps the given order); "
+    "**given order**, the random rays on the same path kept in the caller's order "
+    "(`ray_order=\"given\"`); **packets**, primary rays in the camera's tile order traced in "
     "SIMD groups of 4, 8 or 16 (`tree.intersect(o, d, threads=1, counters=False, "
     "packets=True)`: the same hits, and the path of the shaded, normal and depth "
     "renders); **counters** (`counters=True`: the path "
@@ -453,8 +454,8 @@ SIDE_BY_SIDE = ("The three structures on one kernel against Embree: kd, the fast
                 "`docs/verdict.md` splits the gap into structure and kernel.")
 
 
-GIVEN_ORDER = ("The hits-only path traces a batch of incoherent rays sorted by their "
-               "origins and directions (`ray_order=\"spatial\"`, the default; "
+GIVEN_ORDER = ("The kd and BSP trees' hits-only path traces a batch of incoherent rays "
+               "sorted by their origins and directions (`ray_order=\"spatial\"`, the default; "
                "core/src/trace/ray_order.hpp), then returns the hits in the caller's order; "
                "Embree traces the rays as given. `kd × Embree speed, given order` is kd's "
                "hits-only path on the same rays kept in the given order "

@@ -50,8 +50,9 @@ def _single_rays(tree, rays: Rays, spec: Spec) -> Tracer:
 def _single_rays_in_given_order(tree, rays: Rays, spec: Spec) -> Tracer:
     """The hits-only single rays in the caller's order (`ray_order="given"`):
     the speed the spatial order (core/src/trace/ray_order.hpp) is measured
-    against, on the rays it sorts, and the one walk on which trees are
-    compared with each other (report.py's kd ÷ BVH)."""
+    against, on the rays a kd or BSP tree sorts, and the one walk on which
+    trees are compared with each other (report.py's kd ÷ BVH; the BVH keeps
+    the given order either way)."""
     return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,
                                          threads=1, counters=False, ray_order="given"))
 

@@ -144,8 +144,8 @@ void bind_trace(nb::module_& m) {
             return bsp::order_rays(rays, RayOrder::Spatial);
         },
         "origins"_a, "directions"_a,
-        "Whether the single-ray hits-only path traces these rays in spatial order "
-        "(ray_order='spatial').");
+        "Whether the single-ray hits-only path of a kd or BSP tree traces these rays in "
+        "spatial order (ray_order='spatial').");
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(),
           "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(), "threads"_a, "cull"_a, "progress"_a.none(),

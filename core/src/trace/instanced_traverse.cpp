@@ -325,14 +325,20 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
     // their spatial order (ray_order.hpp), as Tree.intersect does: the same
     // hits, the instance index written back with them. Neighbouring rays
     // then enter the same instances and walk the same nodes of the top
-    // level and of the mesh trees (docs/instances.md has the gain).
-    if (counting || !order_rays(rays, order)) {
+    // level and of the mesh trees (docs/instances.md has the gain). As for a
+    // single BVH, a scene whose mesh trees are all BVHs keeps the given
+    // order: on two threads it measured 0.5 - 6.5 % slower sorted.
+    const bool all_bvh = std::all_of(scene.meshes.begin(), scene.meshes.end(), [](const Tree* t) {
+        return t->structure == Structure::Bvh;
+    });
+    if (counting || all_bvh || !order_rays(rays, order)) {
         trace_batch(rays, hits, extra);
         return;
     }
     std::vector<int32_t> instance(std::min(rays.count, kOrderWindow));
     for (size_t begin = 0; begin < rays.count; begin += kOrderWindow) {
-        const OrderedRays ordered(rays, begin, std::min(rays.count, begin + kOrderWindow));
+        const OrderedRays ordered(rays, begin, std::min(rays.count, begin + kOrderWindow),
+                                  resolve_threads(threads));
         const InstanceHits ordered_extra{instance.data()};
         trace_batch(ordered.rays(), ordered.hits(), ordered_extra);
         ordered.scatter(hits);

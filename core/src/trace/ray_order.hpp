@@ -34,13 +34,19 @@ constexpr int kOrderDirectionBits = 5;
 // directions and origins are both unlike their neighbours'.
 bool order_rays(const RayBatch& rays, RayOrder order);
 
+// The ordering's steps (the origins' box, the keys, the copy, the scatter)
+// run on the tracing threads in chunks of this many rays; only the radix
+// sort runs on one.
+constexpr size_t kOrderChunk = size_t(1) << 14;
+
 // Rays [begin, end) of a batch copied in their sort order, with room for
 // their hits; scatter() writes the hits back to the caller's rays. The
 // copies live in the calling thread's buffers: one OrderedRays at a time
-// per thread.
+// per thread. `threads` (at least 1) share the work; the order is the same
+// whatever their number.
 class OrderedRays {
 public:
-    OrderedRays(const RayBatch& rays, size_t begin, size_t end);
+    OrderedRays(const RayBatch& rays, size_t begin, size_t end, int threads = 1);
     const RayBatch& rays() const { return rays_; }
     const HitBatch& hits() const { return hits_; }
     // The hits of the ordered rays into `out`, at the rays' own indices.
@@ -52,6 +58,7 @@ public:
 
 private:
     size_t begin_, count_;
+    int threads_;
     // In the calling thread's scratch (ray_order.cpp), valid until its next
     // OrderedRays: order_[i] is the caller's ray (from begin) traced i-th.
     const uint32_t* order_ = nullptr;

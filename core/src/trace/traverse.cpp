@@ -58,8 +58,8 @@ void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatc
     run(trace, make_tree_view(tree), rays, out, threads, progress, units_per_ray);
 }
 
-// The single-ray hits-only path: an incoherent batch is traced in windows
-// of rays in their spatial order (ray_order.hpp), the same hits.
+// The kd/BSP hits-only path: an incoherent batch is traced in windows of
+// rays in their spatial order (ray_order.hpp), the same hits.
 void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
                    const HitBatch& out, int threads, Progress* progress, RayOrder order) {
     if (!order_rays(rays, order)) {
@@ -70,7 +70,7 @@ void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
     const uint64_t units_per_ray = Progress::kScale / rays.count;
     for (size_t begin = 0; begin < rays.count; begin += kOrderWindow) {
         const size_t end = std::min(rays.count, begin + kOrderWindow);
-        const OrderedRays ordered(rays, begin, end);
+        const OrderedRays ordered(rays, begin, end, resolve_threads(threads));
         run(trace, view, ordered.rays(), ordered.hits(), threads, progress, units_per_ray);
         ordered.scatter(out);
     }
@@ -85,10 +85,11 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
         throw std::invalid_argument("intersect: give all five counter arrays or none");
     if (tree.structure == Structure::Bvh) {
         // No culling: a BVH leaf's box is already its triangles' tight box.
-        if (given != 0)
-            run(selected_kernels().bvh_single_ray[1], tree, rays, hits, threads, progress);
-        else
-            run_hits_only(bvh_hits_kernel(), tree, rays, hits, threads, progress, order);
+        // Rays in their given order: the BVH's walk gains about what the
+        // spatial order costs on one thread, and less than it costs on two
+        // (docs/performance.md, "The sort made cheaper").
+        run(given != 0 ? selected_kernels().bvh_single_ray[1] : bvh_hits_kernel(), tree, rays,
+            hits, threads, progress);
         return;
     }
     // The kd/BSP kernels do no box tests.

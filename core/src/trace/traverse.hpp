@@ -34,14 +34,14 @@ struct HitBatch {
     uint32_t* box_tests = nullptr;      // ray-box tests (BVH trees; 0 on kd and BSP trees)
 };
 
-// How the single-ray hits-only path orders a batch (Tree.intersect's
-// ray_order; an instanced scene's too). Spatial traces an incoherent batch - random
+// How the single-ray hits-only path of a kd or BSP tree orders a batch
+// (Tree.intersect's ray_order; an instanced scene's too). Spatial traces an incoherent batch - random
 // or scattered rays, not a camera's nor rays cast from its hits in pixel
 // order - in windows sorted by the rays' origins and directions
 // (ray_order.hpp): neighbouring rays then walk mostly the same nodes, and
 // the walk runs faster. Given traces every batch in the caller's order. The
-// hits are the same either way, bit for bit; the counting path and the
-// packets always take the given order.
+// hits are the same either way, bit for bit; the counting path, the packets
+// and the BVH always take the given order.
 enum class RayOrder : int { Spatial = 0, Given = 1 };
 
 // With `cull` (and boxes in the tree), a leaf skips the triangles whose box

@@ -267,8 +267,9 @@ def check_instanced_spec(case: dict) -> None:
 def check_sorted_instanced_batch(it, rays, checked: dict, label: str, case: dict) -> None:
     """As check_sorted_batch, on an instanced scene: every family's rays,
     repeated and shuffled into one batch of more than kOrderMinRays, which
-    the single-ray hits-only path traces in spatial order; each ray must get
-    the hit and instance Embree has just checked, bit for bit."""
+    the single-ray hits-only path traces in spatial order (unless every mesh
+    tree is a BVH); each ray must get the hit and instance Embree has just
+    checked, bit for bit."""
     names = list(rays.rays)
     total = sum(len(rays.rays[n][0]) for n in names)
     copies = -(-4200 // max(total, 1))  # past ray_order.hpp's kOrderMinRays

@@ -1,9 +1,10 @@
 """Incoherent batches traced in spatial order (core/src/trace/ray_order.hpp,
 Tree.intersect's and InstancedTree.intersect's ray_order): the single-ray
-hits-only path of every tree, and of an instanced scene, sorts an incoherent
-batch of 4,096 rays or more by the rays' origins and directions, traces it
-in that order and writes the hits (and instances) back in the caller's
-order. The hits must be the counting path's (which keeps the given order)
+hits-only path of a kd or BSP tree, and of an instanced scene of them, sorts
+an incoherent batch of 4,096 rays or more by the rays' origins and
+directions, traces it in that order and writes the hits (and instances)
+back in the caller's order; the BVH keeps the given order, and must give
+the same hits either way. The hits must be the counting path's (which keeps the given order)
 bit for bit on every ray family, method, limit, thread count and window,
 and Embree's; and only incoherent batches may take the sorted path."""
 
@@ -166,8 +167,8 @@ def test_a_sorted_batch_reports_progress_and_can_be_cancelled():
 
 
 # Instanced scenes (InstancedTree.intersect): the single-ray hits-only path
-# sorts an incoherent batch too, and writes each ray's instance back with
-# its hit.
+# sorts an incoherent batch too (unless every mesh tree is a BVH), and
+# writes each ray's instance back with its hit.
 
 @functools.lru_cache(maxsize=None)
 def world_families(world: str):
