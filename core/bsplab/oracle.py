@@ -170,7 +170,12 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
     (tnear <= t <= tfar) and a single-precision test may differ; and
     `degenerate`: the triangle Embree hit has zero area (a segment: we never
     hit those). Hits on two triangles whose distances differ by less than
-    the coordinates' rounding count as grazing too."""
+    the coordinates' rounding count as grazing too. Last, `embree_wrong`:
+    in exact rational arithmetic on the float32 ray and triangles, the ray
+    misses the triangle Embree hit and our answer is the exact first hit
+    (or, where we miss, there is none): Embree's own rounding, which grows
+    with the origin's distance from the triangle, decided the ray
+    (exact_first_hit; checked for at most EXACT_ROWS rays a call)."""
     pa, pb = ours["prim"], ref["prim"]
     ta, tb = ours["t"].astype(np.float64), ref["t"].astype(np.float64)
     both_miss = (pa < 0) & (pb < 0)
@@ -241,6 +246,15 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
             near = np.zeros(len(bad), bool)
             near[np.flatnonzero(both)[tie]] = True
             grazing |= near & ~(at_ends | degenerate)
+    embree_wrong = np.zeros(len(bad), bool)
+    if len(bad) and triangles is not None and slack is None:
+        rest = np.flatnonzero(~(grazing | at_ends | degenerate))[:EXACT_ROWS]
+        for j in rest:
+            r = bad[j]
+            lo_r = 0.0 if tmin is None else float(np.broadcast_to(tmin, (len(pa),))[r])
+            hi_r = np.inf if tmax is None else float(np.broadcast_to(tmax, (len(pa),))[r])
+            embree_wrong[j] = _embree_exactly_wrong(triangles, int(pa[r]), int(pb[r]),
+                                                    origins[r], directions[r], lo_r, hi_r)
     n = len(pa)
     return {
         "rays": n,
@@ -255,8 +269,10 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
         "grazing": int(grazing.sum()),
         "at_ends": int(at_ends.sum()),
         "degenerate": int(degenerate.sum()),
+        "embree_wrong": int(embree_wrong.sum()),
         "disagreeing": bad,
-        "unexplained": bad[~(grazing | at_ends | degenerate)] if triangles is not None else bad,
+        "unexplained": bad[~(grazing | at_ends | degenerate | embree_wrong)]
+        if triangles is not None else bad,
     }
 
 
@@ -391,6 +407,57 @@ def _exactly_past_embrees_triangle(tris, ours: int, theirs: int, origin, directi
             first, first_t = int(j), t
     return first == ours and abs(float(first_t) - t_ours) <= rel_tol * max(abs(float(first_t)),
                                                                          1e-30)
+
+
+# compare() decides at most this many disagreeing rays a call exactly (each
+# costs a pass over the scene's triangles in double, then fractions).
+EXACT_ROWS = 16
+
+
+def _embree_exactly_wrong(triangles, ours: int, theirs: int, origin, direction, tmin: float,
+                          tmax: float) -> bool:
+    """Whether, exactly, the ray misses the triangle Embree hit (within the
+    segment) and our answer is the first hit (exact_first_hit)."""
+    def within(t):
+        return t is not None and tmin <= t <= tmax
+    if theirs >= 0 and within(exact_hit_t(triangles[theirs], origin, direction)):
+        return False
+    first, t_first = exact_first_hit(triangles, origin, direction, tmin, tmax)
+    if ours < 0:
+        return first < 0
+    t_ours = exact_hit_t(triangles[ours], origin, direction)
+    return within(t_ours) and t_first is not None and t_ours == t_first
+
+
+def exact_first_hit(triangles, origin, direction, tmin: float = 0.0, tmax: float = np.inf):
+    """The first triangle the ray meets within [tmin, tmax], exactly
+    (exact_hit_t), and its t; (-1, None) when it meets none. Candidates are
+    found in double precision with a wide margin (any triangle the ray
+    passes within 1e-6 of, in barycentric terms, or nearly parallel to),
+    then decided in fractions."""
+    tri = np.asarray(triangles, np.float64)
+    o = np.asarray(origin, np.float32).astype(np.float64)
+    d = np.asarray(direction, np.float32).astype(np.float64)
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    s = o - tri[:, 0]
+    q = np.cross(s, e1)
+    with np.errstate(all="ignore"):
+        u = np.einsum("ij,ij->i", s, p) / det
+        v = (q @ d) / det
+        t = np.einsum("ij,ij->i", e2, q) / det
+    margin = 1e-6
+    scale = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1) * np.linalg.norm(d)
+    nearly_parallel = ~(np.abs(det) > 1e-9 * scale)
+    candidate = nearly_parallel | ((u >= -margin) & (v >= -margin) & (u + v <= 1 + margin)
+                                   & (t > 0))
+    best, best_t = -1, None
+    for k in np.flatnonzero(candidate):
+        tk = exact_hit_t(triangles[k], origin, direction)
+        if tk is not None and tmin <= tk <= tmax and (best_t is None or tk < best_t):
+            best, best_t = int(k), tk
+    return best, best_t
 
 
 def exact_hit_t(triangle, origin, direction):
