@@ -206,9 +206,10 @@ def trace_flags(cull, counters, packets) -> tuple[bool, bool, bool]:
 
 
 # Tree.intersect's (and InstancedTree.intersect's) ray_order: how the
-# single-ray hits-only path of kd and BSP trees orders a batch (core: RayOrder in trace/traverse.hpp). "spatial" traces an
-# incoherent batch sorted by the rays' origins and directions, "given" in
-# the caller's order; the hits are the same.
+# single-ray hits-only path of kd and BSP trees orders a batch (core:
+# RayOrder in trace/traverse.hpp). "spatial" traces an incoherent batch
+# sorted by the rays' origins and directions, "given" in the caller's
+# order; the hits are the same.
 RAY_ORDERS = ("spatial", "given")
 
 

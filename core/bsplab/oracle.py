@@ -249,12 +249,11 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
     embree_wrong = np.zeros(len(bad), bool)
     if len(bad) and triangles is not None and slack is None:
         rest = np.flatnonzero(~(grazing | at_ends | degenerate))[:EXACT_ROWS]
-        for j in rest:
+        for j in rest:  # lo, hi: the disagreeing rays' limits, above
             r = bad[j]
-            lo_r = 0.0 if tmin is None else float(np.broadcast_to(tmin, (len(pa),))[r])
-            hi_r = np.inf if tmax is None else float(np.broadcast_to(tmax, (len(pa),))[r])
             embree_wrong[j] = _embree_exactly_wrong(triangles, int(pa[r]), int(pb[r]),
-                                                    origins[r], directions[r], lo_r, hi_r)
+                                                    origins[r], directions[r], float(lo[j]),
+                                                    float(hi[j]))
     n = len(pa)
     return {
         "rays": n,

@@ -181,7 +181,7 @@ TEST(OrderedRays, ScatterPutsAnIntColumnAtItsRays) {
     RandomRays r(40000);
     const size_t begin = 500, end = 38500;
     const OrderedRays ordered(r.batch, begin, end, 2);
-    ASSERT_EQ(ordered.count(), end - begin);
+    ASSERT_EQ(ordered.rays().count, end - begin);
     std::vector<int32_t> column(end - begin);
     for (size_t i = 0; i < column.size(); ++i) column[i] = int32_t(3 * source_of(ordered, i) + 1);
     std::vector<int32_t> out(40000, -5);

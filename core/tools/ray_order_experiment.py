@@ -92,17 +92,10 @@ def main() -> None:
 def instanced_world(world: str, method: str, rays: int, rounds: int) -> None:
     meshes, idx, mats = instanced_scenes.WORLDS[world]()
     scene = bsplab.build_instanced(meshes, idx, mats, method)
-    # The instances' box: the mesh boxes' corners carried by each matrix.
-    corners = []
-    for m, a in zip(idx, np.asarray(mats, np.float64)[:, :3, :]):
-        lo, hi = np.asarray(meshes[m], np.float64).reshape(-1, 3).min(0), \
-            np.asarray(meshes[m], np.float64).reshape(-1, 3).max(0)
-        box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                        for z in (lo[2], hi[2])])
-        corners.append(box @ a[:, :3].T + a[:, 3])
-    corners = np.concatenate(corners)
+    # The instances' box: the top level's root.
+    root = scene.top_boxes(max_depth=0)
     rng = np.random.default_rng(1)
-    o = rng.uniform(corners.min(0), corners.max(0), (rays, 3)).astype(np.float32)
+    o = rng.uniform(root["lo"][0], root["hi"][0], (rays, 3)).astype(np.float32)
     d = rng.normal(size=(rays, 3))
     d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
     times = {"given": [], "sorted": []}

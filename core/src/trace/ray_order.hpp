@@ -54,7 +54,6 @@ public:
     // One more column of per-ray results (the instanced path's instance
     // index): `ordered[i]` of the i-th ray traced into `out` at its index.
     void scatter(const int32_t* ordered, int32_t* out) const;
-    size_t count() const { return count_; }
 
 private:
     size_t begin_, count_;

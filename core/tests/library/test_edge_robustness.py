@@ -130,6 +130,14 @@ def test_far_and_in_plane_rays_cost_what_camera_rays_cost(scene_id, method):
         assert steps <= CLIFF_FACTOR * camera, (scene_id, method, name, steps, camera)
 
 
+def regression_scene(name_start: str) -> np.ndarray:
+    """The triangles of the fuzz_regressions.json scene whose name starts so."""
+    from bsplab import fuzz
+    case = next(c for c in json.loads(REGRESSIONS.read_text())
+                if c["name"].startswith(name_start))
+    return fuzz.build_scene(case["parts"], case["scale_exp"], case["offset"])
+
+
 def test_the_oracle_decides_a_pass_by_exactly_and_still_sees_real_leaks():
     """A fuzzed box edge far from the origin (fuzz_regressions.json,
     box_edge_embree_accepts_from_outside_far_from_origin): Embree's float test
@@ -137,10 +145,7 @@ def test_the_oracle_decides_a_pass_by_exactly_and_still_sees_real_leaks():
     rational arithmetic), and we hit the neighbour face 29 it does enter,
     2e-4 farther. oracle.leaks excuses that (oracle.exact_hit_t), but not a
     miss there, nor a hit on the face behind (28) that skips 29."""
-    from bsplab import fuzz
-    case = json.loads(REGRESSIONS.read_text())
-    case = next(c for c in case if c["name"].startswith("box_edge_embree_accepts"))
-    tris = fuzz.build_scene(case["parts"], case["scale_exp"], case["offset"])
+    tris = regression_scene("box_edge_embree_accepts")
     o, d, tmax = ray_families.family("through_edges", tris, 120, len(tris))
     ours = bsplab.build(tris, "kd").intersect(o, d, tmax=tmax)
     ref = oracle.EmbreeTracer(tris).intersect(o, d, tmax=tmax)
@@ -168,10 +173,7 @@ def test_the_oracle_excuses_embree_only_where_it_is_exactly_wrong():
     misses. oracle.compare classes that as embree_wrong (exact_first_hit:
     no triangle is hit); it stays unexplained where our answer is not the
     exact first hit, or where Embree's triangle is hit exactly."""
-    from bsplab import fuzz
-    case = json.loads(REGRESSIONS.read_text())
-    case = next(c for c in case if c["name"].startswith("sliver_far_ray"))
-    tris = fuzz.build_scene(case["parts"], case["scale_exp"], case["offset"])
+    tris = regression_scene("sliver_far_ray")
     o, d, tmax = ray_families.family("long_rays", tris, 120, len(tris))
     ours = bsplab.build(tris, "bvh").intersect(o, d, tmax=tmax)
     ref = oracle.EmbreeTracer(tris).intersect(o, d, tmax=tmax)

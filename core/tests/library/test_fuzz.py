@@ -107,25 +107,29 @@ def check_spec(case: dict) -> None:
         # A leak - a miss or a farther hit where Embree hits (oracle.leaks) -
         # is wrong even when the double-precision tie-break could explain it.
         assert_none(c["leaks"], f"{name} rays leak", label, case, o, d, c["hits"], ref)
-    check_sorted_batch(tree, rays, checked, f"{method} {opts}", case)
+    check_sorted_batch(tree, rays, {n: c["hits"] for n, c in checked.items()},
+                       f"{method} {opts}", case)
 
 
-def check_sorted_batch(tree, rays, checked: dict, label: str, case: dict) -> None:
-    """Every family's rays, three times over and shuffled into one batch of
-    more than kOrderMinRays: the hits-only path traces it in spatial order
-    (core/src/trace/ray_order.hpp) and must give each ray the counting
-    path's hit, which Embree has just checked."""
+def check_sorted_batch(tracer, rays, hits: dict, label: str, case: dict,
+                       keys=("t", "prim", "u", "v")) -> None:
+    """Every family's rays, repeated (three times at least) and shuffled into
+    one batch of more than kOrderMinRays: the hits-only path traces it in
+    spatial order (core/src/trace/ray_order.hpp) and must give each ray the
+    hit in `hits` (per family: the answers Embree has just checked) bit for
+    bit, in every one of `keys`. `tracer`: a Tree or an InstancedTree."""
     names = list(rays.rays)
-    o = np.concatenate([rays.rays[n][0] for n in names] * 3)
-    d = np.concatenate([rays.rays[n][1] for n in names] * 3)
-    tmax = np.concatenate([rays.rays[n][2] for n in names] * 3)
-    want = {k: np.concatenate([checked[n]["hits"][k] for n in names] * 3)
-            for k in ("t", "prim", "u", "v")}
+    total = sum(len(rays.rays[n][0]) for n in names)
+    copies = max(3, -(-4200 // max(total, 1)))  # past ray_order.hpp's kOrderMinRays
+    o = np.concatenate([rays.rays[n][0] for n in names] * copies)
+    d = np.concatenate([rays.rays[n][1] for n in names] * copies)
+    tmax = np.concatenate([rays.rays[n][2] for n in names] * copies)
+    want = {k: np.concatenate([hits[n][k] for n in names] * copies) for k in keys}
     perm = np.random.default_rng(len(o)).permutation(len(o))
-    got = tree.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False)
+    got = tracer.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False)
     # Bit for bit (a NaN would not equal itself).
     differ = np.flatnonzero(np.any([got[k].view(np.uint32) != want[k][perm].view(np.uint32)
-                                    for k in ("t", "prim", "u", "v")], axis=0))
+                                    for k in keys], axis=0))
     assert_none(differ, "rays differ in spatial order", label, case, o[perm], d[perm], got,
                 {k: v[perm] for k, v in want.items()})
 
@@ -261,29 +265,9 @@ def check_instanced_spec(case: dict) -> None:
             leak = oracle.leaks(ours, ref, triangles=flat, origins=o, directions=d, tmax=tmax,
                                 slack=slack)
             assert_none(leak, f"{name} rays leak", label, case, o, d, ours, ref)
-    check_sorted_instanced_batch(it, rays, checked, f"{method} {opts}", case)
-
-
-def check_sorted_instanced_batch(it, rays, checked: dict, label: str, case: dict) -> None:
-    """As check_sorted_batch, on an instanced scene: every family's rays,
-    repeated and shuffled into one batch of more than kOrderMinRays, which
-    the single-ray hits-only path traces in spatial order (unless every mesh
-    tree is a BVH); each ray must get the hit and instance Embree has just
-    checked, bit for bit."""
-    names = list(rays.rays)
-    total = sum(len(rays.rays[n][0]) for n in names)
-    copies = -(-4200 // max(total, 1))  # past ray_order.hpp's kOrderMinRays
-    o = np.concatenate([rays.rays[n][0] for n in names] * copies)
-    d = np.concatenate([rays.rays[n][1] for n in names] * copies)
-    tmax = np.concatenate([rays.rays[n][2] for n in names] * copies)
-    keys = ("t", "prim", "u", "v", "instance")
-    want = {k: np.concatenate([checked[n][k] for n in names] * copies) for k in keys}
-    perm = np.random.default_rng(len(o)).permutation(len(o))
-    got = it.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False)
-    differ = np.flatnonzero(np.any([got[k].view(np.uint32) != want[k][perm].view(np.uint32)
-                                    for k in keys], axis=0))
-    assert_none(differ, "instanced rays differ in spatial order", label, case, o[perm],
-                d[perm], got, {k: v[perm] for k, v in want.items()})
+    # Unless every mesh tree is a BVH, the batch is traced in spatial order.
+    check_sorted_batch(it, rays, checked, f"{method} {opts}", case,
+                       keys=("t", "prim", "u", "v", "instance"))
 
 
 @settings(max_examples=examples(40), deadline=None, derandomize=not LONG,
