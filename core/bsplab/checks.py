@@ -207,18 +207,19 @@ def trace_flags(cull, counters, packets) -> tuple[bool, bool, bool]:
 
 # Tree.intersect's (and InstancedTree.intersect's) ray_order: how the
 # single-ray hits-only path of kd and BSP trees orders a batch (core:
-# RayOrder in trace/traverse.hpp). "spatial" traces an incoherent batch
-# sorted by the rays' origins and directions, "given" in the caller's
-# order; the hits are the same.
-RAY_ORDERS = ("spatial", "given")
+# RayOrder in trace/traverse.hpp, whose values are these indices). "spatial"
+# traces an incoherent batch sorted by the rays' origins and directions,
+# "auto" does so when a probe of the rays shows their walks long enough to
+# pay for the sort, "given" keeps the caller's order; the hits are the same.
+RAY_ORDERS = ("auto", "spatial", "given")
 
 
-def ray_order(value) -> bool:
-    """True when the rays keep the given order."""
+def ray_order(value) -> int:
+    """The core's RayOrder for a ray_order string."""
     if value not in RAY_ORDERS:
         raise ValueError(f"ray_order must be one of {', '.join(map(repr, RAY_ORDERS))}, "
                          f"got {value!r}")
-    return value == "given"
+    return RAY_ORDERS.index(value)
 
 
 def threads(value) -> int:

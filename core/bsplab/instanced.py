@@ -379,7 +379,7 @@ class InstancedTree:
         return flatten([t.triangles for t in self.meshes], self.mesh_index, self.matrices)
 
     def intersect(self, origins, directions, tmin=0.0, tmax=np.inf, *, threads=0, cull=False,
-                  counters=True, packets=False, ray_order="spatial", progress=None) -> dict:
+                  counters=True, packets=False, ray_order="auto", progress=None) -> dict:
         """Closest hits: as Tree.intersect's ("prim" the triangle's index in
         its mesh), plus "instance" (-1 on a miss) and "flat_prim" (the index
         in flatten()'s triangles). With counters, COUNTERS hold the bottom
@@ -395,11 +395,13 @@ class InstancedTree:
         Tree.intersect's, "spatial" traces an incoherent batch of 4,096 rays
         or more sorted by the rays' origins and directions (unless every mesh
         tree is a BVH, which keeps the given order as Tree.intersect's
-        does), "given" in the caller's order; the same hits either way, in
-        the caller's order. Leaf
+        does), "auto" (the default) when a probe of the rays also walks at
+        least 4 nodes a ray (the top level's and the mesh trees' together),
+        "given" in the caller's order; the same hits in every order, in the
+        caller's order. Leaf
         culling (`cull=True`) is not offered in two levels."""
         cull, counters, packets = checks.trace_flags(cull, counters, packets)
-        given_order = checks.ray_order(ray_order)
+        order = checks.ray_order(ray_order)
         if cull:
             raise ValueError("cull=True: leaf culling is not offered for instanced scenes "
                              "(trace their flattened scene to cull)")
@@ -415,7 +417,7 @@ class InstancedTree:
             out.update({name: np.empty(n, np.uint32) for name in names})
         _core.intersect_instanced(self._scene, o, d, lo, hi, out["t"], out["prim"], out["u"],
                                   out["v"], out["instance"], *(out.get(k) for k in names),
-                                  checks.threads(threads), packets, progress, given_order)
+                                  checks.threads(threads), packets, progress, order)
         hit = out["instance"] >= 0
         out["flat_prim"] = np.where(hit, self.flat_offsets[np.maximum(out["instance"], 0)]
                                     + out["prim"], -1).astype(np.int64)

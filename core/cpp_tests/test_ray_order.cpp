@@ -206,5 +206,59 @@ TEST(OrderedRays, WhichBatchesAreSorted) {
     EXPECT_FALSE(order_rays(parallel.batch, RayOrder::Spatial));
 }
 
+// RayOrder::Auto's probe: rays spread over the whole batch with their own
+// limits, in groups, stopping once the steps reach the bar.
+TEST(OrderedRays, TheProbeSortsOnlyLongWalks) {
+    RandomRays r(kOrderMinRays + 1000);
+    std::vector<size_t> probed;  // the rays the probe traced, by their tmin
+    size_t calls = 0;
+    uint32_t per_ray = 0;
+    const CountSteps count = [&](const RayBatch& probe) {
+        ++calls;
+        EXPECT_LE(probe.count, kProbeGroup);
+        EXPECT_EQ(probe.tmin_stride, 1u);
+        for (size_t i = 0; i < probe.count; ++i) {
+            const size_t src = size_t(probe.tmin[i]);
+            EXPECT_EQ(probe.tmax[i], r.tmax[src]);
+            for (int k = 0; k < 3; ++k) {
+                EXPECT_EQ(probe.origins[3 * i + k], r.o[3 * src + k]);
+                EXPECT_EQ(probe.directions[3 * i + k], r.d[3 * src + k]);
+            }
+            probed.push_back(src);
+        }
+        return uint64_t(per_ray) * probe.count;
+    };
+    // One step short of the bar on every ray: the whole probe, and no sort.
+    per_ray = kOrderMinSteps - 1;
+    EXPECT_FALSE(order_rays(r.batch, RayOrder::Auto, count));
+    EXPECT_EQ(probed.size(), kProbeRays);
+    EXPECT_EQ(calls, kProbeRays / kProbeGroup);
+    EXPECT_EQ(probed.front(), 0u);
+    EXPECT_EQ(probed.back(), r.batch.count - 1);
+    EXPECT_TRUE(std::is_sorted(probed.begin(), probed.end()));
+    EXPECT_EQ(std::adjacent_find(probed.begin(), probed.end()), probed.end());
+    // Under Spatial the probe is not asked.
+    calls = 0;
+    EXPECT_TRUE(order_rays(r.batch, RayOrder::Spatial, count));
+    EXPECT_EQ(calls, 0u);
+    // At the bar: sorted. Walks eight times as long stop after one group.
+    per_ray = kOrderMinSteps;
+    EXPECT_TRUE(order_rays(r.batch, RayOrder::Auto, count));
+    calls = 0;
+    per_ray = kOrderMinSteps * uint32_t(kProbeRays / kProbeGroup);
+    EXPECT_TRUE(order_rays(r.batch, RayOrder::Auto, count));
+    EXPECT_EQ(calls, 1u);
+    // A bar of its own (an instanced scene's).
+    per_ray = kOrderMinInstancedSteps - 1;
+    EXPECT_FALSE(order_rays(r.batch, RayOrder::Auto, count, kOrderMinInstancedSteps));
+    per_ray = kOrderMinInstancedSteps;
+    EXPECT_TRUE(order_rays(r.batch, RayOrder::Auto, count, kOrderMinInstancedSteps));
+    // A coherent or short batch is not probed.
+    calls = 0;
+    r.batch.count = kOrderMinRays - 1;
+    EXPECT_FALSE(order_rays(r.batch, RayOrder::Auto, count));
+    EXPECT_EQ(calls, 0u);
+}
+
 }  // namespace
 }  // namespace bsp

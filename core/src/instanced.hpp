@@ -133,12 +133,16 @@ struct InstanceHits {
     uint32_t* instance_visits = nullptr;
 };
 
+// Whether intersect_instanced()'s hits-only path traces this batch in
+// spatial order (ray_order.hpp): never when every mesh tree is a BVH.
+bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder order);
+
 // Closest hits: hits.prim is the triangle's index in its mesh.
 // Without counter arrays an incoherent batch is traced in spatial order
 // (`order`, as intersect()'s in traverse.hpp): the same hits.
 void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
                          InstanceHits& extra, int threads, Progress* progress = nullptr,
-                         RayOrder order = RayOrder::Spatial);
+                         RayOrder order = RayOrder::Auto);
 
 // The same hits, hits only (no counter arrays): groups of consecutive rays
 // walk the top level together and go through each mesh tree's packet kernel

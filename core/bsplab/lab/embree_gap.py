@@ -47,7 +47,7 @@ def gap_spec(scenes: list[str], results_toml, **overrides) -> Spec:
 
 def _hits_only(tree, rays) -> Tracer:
     """The hits-only path with the rays in the given order: a kd or BSP tree
-    would sort the random rays (ray_order="spatial", the default), the BVH
+    would sort the random rays (ray_order="auto", the default), the BVH
     does not, and the split compares the structures' walks alone. What the
     spatial order buys is benchmark.md's (kd in both orders)."""
     return Tracer(lambda: tree.intersect(rays.origins, rays.directions, tmax=rays.tmax,

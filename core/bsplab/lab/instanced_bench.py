@@ -127,8 +127,9 @@ def markdown(rows: list[dict], command: str) -> str:
         "the other, rotating), each ratio the median of the per-round ratios. Builds use all "
         f"cores. A flat tree is built only up to {FLAT_LIMIT:,} instanced triangles and "
         f"Embree's flattened scene up to {EMBREE_LIMIT:,} (—: not built). The random rays "
-        "are traced in spatial order by our kd paths (`ray_order=\"spatial\"`, the "
-        "default: sorted by origin and direction, the hits returned in the caller's order) "
+        "are traced in spatial order by our kd paths (`ray_order=\"auto\"`, the default, "
+        "which sorts rays in the instances' box: sorted by origin and direction, the hits "
+        "returned in the caller's order) "
         "and as given by our BVH paths and Embree. Worlds: "
         "`bsplab.instanced_scenes.WORLDS` (suzanne_grid and grid25: 100 and 25 copies of the "
         "bunny standing in for the issue's Suzanne).",

@@ -308,7 +308,8 @@ BENCH_COLUMNS = (
     "same rounds: **hits-only**, one ray at a time without counters "
     "(`tree.intersect(o, d, threads=1, counters=False)`: the closest hits only, as "
     "Embree needs; a kd or BSP tree sorts an incoherent batch - the random rays - into "
-    "spatial order first, `ray_order=\"spatial\"`, the BVH keeps the given order); "
+    "spatial order first (`ray_order=\"auto\"`, the default, which sorts them: their walks "
+    "are long enough to pay for it), the BVH keeps the given order); "
     "**given order**, the random rays on the same path kept in the caller's order "
     "(`ray_order=\"given\"`); **packets**, primary rays in the camera's tile order traced in "
     "SIMD groups of 4, 8 or 16 (`tree.intersect(o, d, threads=1, counters=False, "
@@ -455,7 +456,8 @@ SIDE_BY_SIDE = ("The three structures on one kernel against Embree: kd, the fast
 
 
 GIVEN_ORDER = ("The kd and BSP trees' hits-only path traces a batch of incoherent rays "
-               "sorted by their origins and directions (`ray_order=\"spatial\"`, the default; "
+               "sorted by their origins and directions (`ray_order=\"auto\"`, the default, for random "
+               "rays in the scene's box, whose walks are long enough to pay for the sort; "
                "core/src/trace/ray_order.hpp), then returns the hits in the caller's order; "
                "Embree traces the rays as given. `kd × Embree speed, given order` is kd's "
                "hits-only path on the same rays kept in the given order "

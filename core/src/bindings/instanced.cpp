@@ -47,7 +47,7 @@ void intersect(const InstancedScene& scene, Vec3Array origins, Vec3Array directi
                Out<float> v, Out<int32_t> instance, Counter steps, Counter general_steps,
                Counter tests, Counter culled, Counter box_tests, Counter top_steps,
                Counter instance_visits, int threads, bool packets, Progress* progress,
-               bool given_order) {
+               int ray_order) {
     const RayBatch rays = ray_batch(origins, directions, tmin, tmax);
     HitBatch hits = hit_batch(rays.count, t, prim, u, v, steps, general_steps, tests, culled,
                               box_tests);
@@ -59,7 +59,7 @@ void intersect(const InstancedScene& scene, Vec3Array origins, Vec3Array directi
         intersect_instanced_packets(scene, rays, hits, extra, threads, progress);
     else
         intersect_instanced(scene, rays, hits, extra, threads, progress,
-                            given_order ? RayOrder::Given : RayOrder::Spatial);
+                            checked_ray_order(ray_order));
 }
 
 nb::dict stats(const InstancedScene& scene) {
@@ -130,7 +130,18 @@ void bind_instanced(nb::module_& m) {
           "tmax"_a, "t"_a, "prim"_a, "u"_a, "v"_a, "instance"_a, "steps"_a.none(),
           "general_steps"_a.none(), "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(),
           "top_steps"_a.none(), "instance_visits"_a.none(), "threads"_a, "packets"_a, "progress"_a.none(),
-          "given_order"_a = false);
+          "ray_order"_a = 0);
+    m.def(
+        "orders_instanced_rays",
+        [](const InstancedScene& scene, Vec3Array origins, Vec3Array directions) {
+            const float zero = 0.0f, inf = INFINITY;
+            const RayBatch rays = unlimited_rays(origins, directions, zero, inf);
+            nb::gil_scoped_release release;
+            return orders_batch(scene, rays, RayOrder::Auto);
+        },
+        "scene"_a, "origins"_a, "directions"_a,
+        "Whether the instanced hits-only path traces these rays (tmin 0, tmax inf) in spatial "
+        "order under ray_order='auto'.");
 }
 
 }  // namespace bsp::bindings

@@ -63,4 +63,26 @@ inline HitBatch hit_batch(size_t rays, Out<float> t, Out<int32_t> prim, Out<floa
                     counter_column(rays, box_tests, "box_tests")};
 }
 
+// Rays over [zero, inf) for the ordering's questions (orders_rays):
+// `zero` and `inf` must outlive the batch.
+inline RayBatch unlimited_rays(Vec3Array origins, Vec3Array directions, const float& zero,
+                               const float& inf) {
+    if (origins.shape(0) != directions.shape(0))
+        throw std::invalid_argument("origins and directions differ in length");
+    RayBatch rays;
+    rays.origins = origins.data();
+    rays.directions = directions.data();
+    rays.tmin = &zero;
+    rays.tmax = &inf;
+    rays.count = origins.shape(0);
+    return rays;
+}
+
+// bsplab.checks.ray_order's index of "auto", "spatial" or "given".
+inline RayOrder checked_ray_order(int order) {
+    if (order < int(RayOrder::Auto) || order > int(RayOrder::Given))
+        throw std::invalid_argument("ray_order: " + std::to_string(order) + " is not 0, 1 or 2");
+    return RayOrder(order);
+}
+
 }  // namespace bsp::bindings

@@ -33,7 +33,7 @@ void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatI
                FloatIn tmax, Out<float> t, Out<int32_t> prim, Out<float> u, Out<float> v,
                Counter steps, Counter general_steps, Counter tests, Counter culled,
                Counter box_tests, int threads,
-               bool cull, Progress* progress, bool packets, bool given_order) {
+               bool cull, Progress* progress, bool packets, int ray_order) {
     if (packets && cull)
         throw std::invalid_argument("intersect: packets trace without culling (use cull=False)");
     const RayBatch rays = ray_batch(origins, directions, tmin, tmax);
@@ -44,7 +44,7 @@ void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatI
         intersect_packets(tree, rays, hits, threads, progress);
     else
         bsp::intersect(tree, rays, hits, threads, cull, progress,
-                       given_order ? RayOrder::Given : RayOrder::Spatial);
+                       checked_ray_order(ray_order));
 }
 
 // The recorded walk as columns: one row per visited node, one per test.
@@ -132,24 +132,21 @@ void bind_trace(nb::module_& m) {
         "origins"_a, "directions"_a, "All finite, no zero direction (checks.rays names the bad ones).");
     m.def(
         "orders_rays",
-        [](Vec3Array origins, Vec3Array directions) {
-            if (origins.shape(0) != directions.shape(0))
-                throw std::invalid_argument("origins and directions differ in length");
-            const float zero = 0.0f;
-            RayBatch rays;
-            rays.origins = origins.data();
-            rays.directions = directions.data();
-            rays.tmin = rays.tmax = &zero;
-            rays.count = origins.shape(0);
-            return bsp::order_rays(rays, RayOrder::Spatial);
+        [](Vec3Array origins, Vec3Array directions, const Tree* tree) {
+            const float zero = 0.0f, inf = INFINITY;
+            const RayBatch rays = unlimited_rays(origins, directions, zero, inf);
+            if (!tree) return bsp::order_rays(rays, RayOrder::Spatial);
+            nb::gil_scoped_release release;
+            return bsp::orders_batch(*tree, rays, RayOrder::Auto);
         },
-        "origins"_a, "directions"_a,
-        "Whether the single-ray hits-only path of a kd or BSP tree traces these rays in "
-        "spatial order (ray_order='spatial').");
+        "origins"_a, "directions"_a, "tree"_a = nb::none(),
+        "Whether the single-ray hits-only path of a kd or BSP tree traces these rays (tmin 0, "
+        "tmax inf) in spatial order: under ray_order='spatial' (no tree given), or under "
+        "ray_order='auto' through `tree`, whose probe of the rays' walks decides too.");
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(),
           "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(), "threads"_a, "cull"_a, "progress"_a.none(),
-          "packets"_a = false, "given_order"_a = false);
+          "packets"_a = false, "ray_order"_a = 0);
     m.def("trace_path", &trace_path, "tree"_a, "origin"_a, "direction"_a, "tmin"_a, "tmax"_a,
           "cull"_a);
 }

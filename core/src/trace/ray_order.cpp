@@ -12,9 +12,56 @@
 
 namespace bsp {
 
-bool order_rays(const RayBatch& rays, RayOrder order) {
-    return order == RayOrder::Spatial && rays.count >= kOrderMinRays &&
-           !rays_are_coherent(rays, 0, rays.count) && !origins_are_coherent(rays);
+bool order_rays(const RayBatch& rays, RayOrder order, const CountSteps& count_steps,
+                uint32_t min_steps) {
+    if (order == RayOrder::Given || rays.count < kOrderMinRays ||
+        rays_are_coherent(rays, 0, rays.count) || origins_are_coherent(rays))
+        return false;
+    return order == RayOrder::Spatial || !count_steps ||
+           walks_pay_for_order(rays, count_steps, min_steps);
+}
+
+bool walks_pay_for_order(const RayBatch& rays, const CountSteps& count_steps,
+                         uint32_t min_steps) {
+    const size_t n = std::min(rays.count, kProbeRays);
+    if (n == 0) return false;
+    // The probe's rays, spread evenly over the batch (the first and the
+    // last among them), copied with their own limits.
+    std::vector<float> o(3 * n), d(3 * n), lo(n), hi(n);
+    for (size_t i = 0; i < n; ++i) {
+        const size_t r = n == 1 ? 0 : i * (rays.count - 1) / (n - 1);
+        std::copy_n(rays.origins + 3 * r, 3, &o[3 * i]);
+        std::copy_n(rays.directions + 3 * r, 3, &d[3 * i]);
+        lo[i] = rays.tmin[r * rays.tmin_stride];
+        hi[i] = rays.tmax[r * rays.tmax_stride];
+    }
+    const uint64_t bar = uint64_t(min_steps) * n;
+    uint64_t steps = 0;
+    for (size_t b = 0; b < n && steps < bar; b += kProbeGroup) {
+        RayBatch group;
+        group.origins = &o[3 * b];
+        group.directions = &d[3 * b];
+        group.tmin = &lo[b];
+        group.tmax = &hi[b];
+        group.tmin_stride = group.tmax_stride = 1;
+        group.count = std::min(kProbeGroup, n - b);
+        steps += count_steps(group);
+    }
+    return steps >= bar;
+}
+
+ProbeHits::ProbeHits(size_t n)
+    : t(n), u(n), v(n), prim(n), instance(n), steps(n), general_steps(n), tests(n), culled(n),
+      box_tests(n), top_steps(n), instance_visits(n) {}
+
+HitBatch ProbeHits::hits() {
+    HitBatch h{t.data(), prim.data(), u.data(), v.data()};
+    h.steps = steps.data();
+    h.general_steps = general_steps.data();
+    h.tests = tests.data();
+    h.culled = culled.data();
+    h.box_tests = box_tests.data();
+    return h;
 }
 
 namespace {

@@ -10,7 +10,9 @@
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <vector>
 
 #include "trace/ray_coherence.hpp"
 #include "trace/traverse.hpp"
@@ -29,10 +31,49 @@ constexpr size_t kOrderWindow = size_t(1) << 18;
 constexpr int kOrderOriginBits = 5;
 constexpr int kOrderDirectionBits = 5;
 
+// The sort pays only for walks that cost more than it does (about 25 ns a
+// ray on a real tree, its radix sort on one thread): random rays drawn in a
+// box a few times a scene's size mostly miss it, walk a few nodes each, and
+// traced up to 1.66 x slower sorted on two threads (docs/performance.md).
+// Under RayOrder::Auto an incoherent batch is sorted only when a probe of
+// its rays walks at least kOrderMinSteps nodes a ray in a tree, or
+// kOrderMinInstancedSteps in an instanced scene (top level and mesh trees
+// together: a two-level walk gains less from the order and its sort writes
+// one more column back). The probe: at most kProbeRays rays spread evenly
+// over the batch, traced on the counting path (one thread) in groups of
+// kProbeGroup, stopping as soon as the steps reach the bar.
+constexpr uint32_t kOrderMinSteps = 8;
+constexpr uint32_t kOrderMinInstancedSteps = 16;
+constexpr size_t kProbeRays = 128;
+constexpr size_t kProbeGroup = 16;
+
+// Traces a probe's rays on the counting path and returns the nodes they
+// visited in all (an instanced scene's: the top level's and the mesh
+// trees'). The probe's rays have per-ray limits.
+using CountSteps = std::function<uint64_t(const RayBatch&)>;
+
 // Whether intersect() traces this batch in spatial order (RayOrder, in
 // traverse.hpp): an incoherent batch of at least kOrderMinRays rays, whose
-// directions and origins are both unlike their neighbours'.
-bool order_rays(const RayBatch& rays, RayOrder order);
+// directions and origins are both unlike their neighbours', and under
+// RayOrder::Auto whose probe walks at least `min_steps` nodes a ray
+// (`count_steps`; without one, Auto orders as Spatial does).
+bool order_rays(const RayBatch& rays, RayOrder order, const CountSteps& count_steps = {},
+                uint32_t min_steps = kOrderMinSteps);
+
+// Whether the batch's rays walk at least `min_steps` nodes each on average,
+// by the probe above.
+bool walks_pay_for_order(const RayBatch& rays, const CountSteps& count_steps, uint32_t min_steps);
+
+// The counting path's output for a probe's few rays: hits and every
+// counter, an instanced scene's included.
+struct ProbeHits {
+    explicit ProbeHits(size_t n);
+    HitBatch hits();
+    std::vector<float> t, u, v;
+    std::vector<int32_t> prim, instance;
+    std::vector<uint32_t> steps, general_steps, tests, culled, box_tests, top_steps,
+        instance_visits;
+};
 
 // The ordering's steps (the origins' box, the keys, the copy, the scatter)
 // run on the tracing threads in chunks of this many rays; only the radix

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <bit>
 #include <cstdlib>
+#include <numeric>
 #include <string>
 #include <stdexcept>
 
@@ -62,7 +63,7 @@ void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatc
 // rays in their spatial order (ray_order.hpp), the same hits.
 void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
                    const HitBatch& out, int threads, Progress* progress, RayOrder order) {
-    if (!order_rays(rays, order)) {
+    if (!orders_batch(tree, rays, order)) {
         run(trace, tree, rays, out, threads, progress);
         return;
     }
@@ -77,6 +78,19 @@ void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
 }
 
 }  // namespace
+
+bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order) {
+    if (tree.structure == Structure::Bvh) return false;
+    // The probe of RayOrder::Auto: a few of the rays on the counting path,
+    // without culling (which skips tests, not nodes), on this thread.
+    const CountSteps count_steps = [&tree](const RayBatch& probe) {
+        ProbeHits counted(probe.count);
+        run(selected_kernels().single_ray[1][int(LeafBoxes::None)], tree, probe, counted.hits(),
+            1, nullptr);
+        return std::accumulate(counted.steps.begin(), counted.steps.end(), uint64_t(0));
+    };
+    return order_rays(rays, order, count_steps);
+}
 
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
                Progress* progress, RayOrder order) {

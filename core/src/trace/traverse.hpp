@@ -35,14 +35,18 @@ struct HitBatch {
 };
 
 // How the single-ray hits-only path of a kd or BSP tree orders a batch
-// (Tree.intersect's ray_order; an instanced scene's too). Spatial traces an incoherent batch - random
-// or scattered rays, not a camera's nor rays cast from its hits in pixel
-// order - in windows sorted by the rays' origins and directions
-// (ray_order.hpp): neighbouring rays then walk mostly the same nodes, and
-// the walk runs faster. Given traces every batch in the caller's order. The
-// hits are the same either way, bit for bit; the counting path, the packets
-// and the BVH always take the given order.
-enum class RayOrder : int { Spatial = 0, Given = 1 };
+// (Tree.intersect's ray_order; an instanced scene's too). Spatial traces an
+// incoherent batch - random or scattered rays, not a camera's nor rays cast
+// from its hits in pixel order - in windows sorted by the rays' origins and
+// directions (ray_order.hpp): neighbouring rays then walk mostly the same
+// nodes, and the walk runs faster. Auto does so only when the rays' walks
+// are long enough to pay for the sort (a probe of the batch on the counting
+// path, ray_order.hpp): rays that mostly miss the scene trace faster as
+// given. Given traces every batch in the caller's order. The hits are the
+// same in every order, bit for bit; the counting path, the packets and the
+// BVH always take the given order. The values are Python's ray_order
+// strings' indices ("auto", "spatial", "given"; bsplab.checks.RAY_ORDERS).
+enum class RayOrder : int { Auto = 0, Spatial = 1, Given = 2 };
 
 // With `cull` (and boxes in the tree), a leaf skips the triangles whose box
 // misses the box of the ray's segment inside the leaf. Throws
@@ -50,7 +54,11 @@ enum class RayOrder : int { Spatial = 0, Given = 1 };
 // A BVH tree (Structure::Bvh) takes the BVH kernel (kernels/bvh_single_ray.hpp),
 // for which cull changes nothing: its leaves' boxes are already tight.
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,
-               Progress* progress = nullptr, RayOrder order = RayOrder::Spatial);
+               Progress* progress = nullptr, RayOrder order = RayOrder::Auto);
+
+// Whether intersect()'s hits-only path traces this batch in spatial order
+// (ray_order.hpp): never on a BVH, which keeps the given order.
+bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order);
 
 // The same closest hits, traced in packets of consecutive rays (as many as
 // the selected level's SIMD lanes; kernels/packet.hpp): fast when consecutive

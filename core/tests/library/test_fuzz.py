@@ -126,7 +126,8 @@ def check_sorted_batch(tracer, rays, hits: dict, label: str, case: dict,
     tmax = np.concatenate([rays.rays[n][2] for n in names] * copies)
     want = {k: np.concatenate([hits[n][k] for n in names] * copies) for k in keys}
     perm = np.random.default_rng(len(o)).permutation(len(o))
-    got = tracer.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False)
+    got = tracer.intersect(o[perm], d[perm], tmax=tmax[perm], counters=False,
+                           ray_order="spatial")
     # Bit for bit (a NaN would not equal itself).
     differ = np.flatnonzero(np.any([got[k].view(np.uint32) != want[k][perm].view(np.uint32)
                                     for k in keys], axis=0))

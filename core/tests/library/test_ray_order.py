@@ -65,17 +65,19 @@ def test_spatial_order_gives_the_counting_paths_hits_on_every_family(scene, meth
     counted = tree.intersect(o, d, tmin=tmin, tmax=tmax)
     assert (counted["prim"] >= 0).sum() > len(o) // 10, "too few hits to tell anything"
     for threads in (1, 2):
-        assert_same(tree.intersect(o, d, tmin=tmin, tmax=tmax, counters=False, threads=threads),
+        assert_same(tree.intersect(o, d, tmin=tmin, tmax=tmax, counters=False,
+                                   ray_order="spatial", threads=threads),
                     counted, f"{scene} {method} spatial order, {threads} threads")
     assert_same(tree.intersect(o, d, tmin=tmin, tmax=tmax, counters=False, ray_order="given"),
                 counted, f"{scene} {method} given order")
     # Shared limits (one tmin and tmax for every ray) stay shared.
     counted = tree.intersect(o, d, tmax=2.0)
-    assert_same(tree.intersect(o, d, tmax=2.0, counters=False), counted,
+    assert_same(tree.intersect(o, d, tmax=2.0, counters=False, ray_order="spatial"), counted,
                 f"{scene} {method} spatial order, one tmax")
     if method != "bvh":
         culled = tree.intersect(o, d, tmin=tmin, tmax=tmax, cull=True)
-        assert_same(tree.intersect(o, d, tmin=tmin, tmax=tmax, cull=True, counters=False),
+        assert_same(tree.intersect(o, d, tmin=tmin, tmax=tmax, cull=True, counters=False,
+                                   ray_order="spatial"),
                     culled, f"{scene} {method} spatial order, culled")
 
 
@@ -92,7 +94,7 @@ def test_spatial_order_agrees_with_embree_on_a_shared_mesh(method):
     tmax = np.concatenate([tmax, np.full(len(ro), np.inf, np.float32)])
     assert orders(o, d)
     tree = build(tris, method)
-    hits = tree.intersect(o, d, tmax=tmax, counters=False, threads=2)
+    hits = tree.intersect(o, d, tmax=tmax, counters=False, ray_order="spatial", threads=2)
     assert_same(hits, tree.intersect(o, d, tmax=tmax), f"{scene} {method}")
     ref = oracle.EmbreeTracer(tris).intersect(o, d, tmax=tmax)
     c = oracle.compare(hits, ref, triangles=tris, origins=o, directions=d, tmax=tmax)
@@ -113,7 +115,8 @@ def test_a_batch_of_two_windows_comes_back_in_the_callers_order():
     assert orders(o, d) and orders(o[WINDOW:], d[WINDOW:])
     counted = tree.intersect(o, d, tmax=tmax)
     assert 0 < (counted["prim"] >= 0).sum() < len(o)
-    assert_same(tree.intersect(o, d, tmax=tmax, counters=False, threads=2), counted,
+    assert_same(tree.intersect(o, d, tmax=tmax, counters=False, ray_order="spatial", threads=2),
+                counted,
                 "two windows")
 
 
@@ -143,11 +146,64 @@ def test_only_incoherent_batches_are_sorted():
     assert not orders(np.zeros_like(ro), rd)
 
 
+def box_rays(lo, hi, scale: float, n: int, seed: int):
+    """Random rays from a box `scale` times the given one about its centre."""
+    c, r = (lo + hi) / 2, (hi - lo) / 2
+    rng = np.random.default_rng(seed)
+    o = rng.uniform(c - scale * r, c + scale * r, (n, 3)).astype(np.float32)
+    d = rng.normal(size=(n, 3))
+    return o, (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+
+
+def test_auto_order_sorts_only_batches_whose_walks_pay():
+    """ray_order="auto" (the default) sorts an incoherent batch only when a
+    probe of its rays walks at least 8 nodes a ray (ray_order.hpp's
+    kOrderMinSteps): random rays in the room's box walk about 23, rays from
+    a box ten times its size mostly miss the room and walk less than one,
+    too few for the sort to pay. Both batches are incoherent ("spatial"
+    sorts both), and every order gives the same hits. A BVH never sorts."""
+    tris = load_scene("gen:room")
+    tree = bsplab.build(tris, "kd")
+    lo, hi = workloads.bounds(tris)
+    for scale, walks in ((1.0, True), (10.0, False)):
+        o, d = box_rays(lo, hi, scale, MIN_RAYS + 100, seed=21)
+        assert orders(o, d), scale
+        counted = tree.intersect(o, d)
+        assert (counted["steps"].mean() >= 8) == walks, (scale, counted["steps"].mean())
+        assert bsplab._core.orders_rays(o, d, tree._tree) == walks, scale
+        for order in ("auto", "spatial", "given"):
+            assert_same(tree.intersect(o, d, counters=False, ray_order=order, threads=2),
+                        counted, f"{order} order, box x {scale}")
+        if walks:
+            assert not bsplab._core.orders_rays(o, d, bsplab.build(tris, "bvh")._tree)
+
+
+def test_auto_order_in_an_instanced_scene():
+    """The same in two levels, where the probe's walk is the top level's and
+    the mesh trees' steps together and the bar is 16
+    (kOrderMinInstancedSteps); a scene of BVH mesh trees never sorts."""
+    it = build_world("touching", "kd")
+    root = it.top_boxes(max_depth=0)
+    for scale, walks in ((1.0, True), (10.0, False)):
+        o, d = box_rays(root["lo"][0], root["hi"][0], scale, MIN_RAYS + 100, seed=23)
+        assert orders(o, d), scale
+        counted = it.intersect(o, d)
+        walk = (counted["steps"] + counted["top_steps"]).mean()
+        assert (walk >= 16) == walks, (scale, walk)
+        assert bsplab._core.orders_instanced_rays(it._scene, o, d) == walks, scale
+        for order in ("auto", "spatial", "given"):
+            assert_same_instanced(it.intersect(o, d, counters=False, ray_order=order),
+                                  counted, f"{order} order, box x {scale}")
+        if walks:
+            bvh = build_world("touching", "bvh")
+            assert not bsplab._core.orders_instanced_rays(bvh._scene, o, d)
+
+
 def test_ray_order_is_checked():
     tris = load_scene("gen:room")
     tree = bsplab.build(tris, "kd")
     o, d = workloads.random_rays(tris, 10)
-    with pytest.raises(ValueError, match="ray_order must be one of 'spatial', 'given'"):
+    with pytest.raises(ValueError, match="ray_order must be one of 'auto', 'spatial', 'given'"):
         tree.intersect(o, d, counters=False, ray_order="sorted")
 
 
@@ -157,13 +213,13 @@ def test_a_sorted_batch_reports_progress_and_can_be_cancelled():
     o, d = workloads.random_rays(tris, 3 * MIN_RAYS, seed=6)
     assert orders(o, d)
     p = bsplab.Progress()
-    hits = tree.intersect(o, d, counters=False, progress=p)
+    hits = tree.intersect(o, d, counters=False, ray_order="spatial", progress=p)
     assert_same(hits, tree.intersect(o, d), "with progress")
     assert p.value == pytest.approx(1.0, abs=1e-3)
     cancelled = bsplab.Progress()
     cancelled.cancel()
     with pytest.raises(bsplab.Cancelled):
-        tree.intersect(o, d, counters=False, progress=cancelled)
+        tree.intersect(o, d, counters=False, ray_order="spatial", progress=cancelled)
 
 
 # Instanced scenes (InstancedTree.intersect): the single-ray hits-only path
@@ -207,13 +263,14 @@ def test_spatial_order_in_an_instanced_scene_gives_the_counting_paths_hits(world
     assert len(np.unique(counted["instance"])) > 4, "hits on too few instances"
     for threads in (1, 2):
         assert_same_instanced(it.intersect(o, d, tmin=tmin, tmax=tmax, counters=False,
-                                           threads=threads),
+                                           ray_order="spatial", threads=threads),
                               counted, f"{world} {method} spatial order, {threads} threads")
     assert_same_instanced(it.intersect(o, d, tmin=tmin, tmax=tmax, counters=False,
                                        ray_order="given"),
                           counted, f"{world} {method} given order")
     counted = it.intersect(o, d, tmax=2.0)
-    assert_same_instanced(it.intersect(o, d, tmax=2.0, counters=False), counted,
+    assert_same_instanced(it.intersect(o, d, tmax=2.0, counters=False, ray_order="spatial"),
+                          counted,
                           f"{world} {method} spatial order, one tmax")
 
 
@@ -225,8 +282,8 @@ def test_an_instanced_batch_of_two_windows_comes_back_in_the_callers_order():
     assert orders(o, d) and orders(o[WINDOW:], d[WINDOW:])
     counted = it.intersect(o, d, tmax=tmax)
     assert 0 < (counted["instance"] >= 0).sum() < len(o)
-    assert_same_instanced(it.intersect(o, d, tmax=tmax, counters=False, threads=2), counted,
-                          "two windows")
+    assert_same_instanced(it.intersect(o, d, tmax=tmax, counters=False, ray_order="spatial",
+                                       threads=2), counted, "two windows")
 
 
 def test_an_instanced_sorted_batch_reports_progress_and_can_be_cancelled():
@@ -234,12 +291,12 @@ def test_an_instanced_sorted_batch_reports_progress_and_can_be_cancelled():
     o, d = workloads.random_rays(it.flatten(), 3 * MIN_RAYS, seed=13)
     assert orders(o, d)
     p = bsplab.Progress()
-    assert_same_instanced(it.intersect(o, d, counters=False, progress=p), it.intersect(o, d),
-                          "with progress")
+    assert_same_instanced(it.intersect(o, d, counters=False, ray_order="spatial", progress=p),
+                          it.intersect(o, d), "with progress")
     assert p.value == pytest.approx(1.0, abs=1e-3)
     cancelled = bsplab.Progress()
     cancelled.cancel()
     with pytest.raises(bsplab.Cancelled):
-        it.intersect(o, d, counters=False, progress=cancelled)
-    with pytest.raises(ValueError, match="ray_order must be one of 'spatial', 'given'"):
+        it.intersect(o, d, counters=False, ray_order="spatial", progress=cancelled)
+    with pytest.raises(ValueError, match="ray_order must be one of 'auto', 'spatial', 'given'"):
         it.intersect(o, d, counters=False, ray_order="sorted")
