@@ -231,7 +231,7 @@ TEST(OrderedRays, TheProbeSortsOnlyLongWalks) {
     // One step short of the bar on every ray: the whole probe, and no sort.
     per_ray = kOrderMinSteps - 1;
     EXPECT_FALSE(order_rays(r.batch, RayOrder::Auto, count));
-    EXPECT_EQ(probed.size(), kProbeRays);
+    ASSERT_EQ(probed.size(), kProbeRays);
     EXPECT_EQ(calls, kProbeRays / kProbeGroup);
     EXPECT_EQ(probed.front(), 0u);
     EXPECT_EQ(probed.back(), r.batch.count - 1);
