@@ -396,7 +396,7 @@ class InstancedTree:
         or more sorted by the rays' origins and directions (unless every mesh
         tree is a BVH, which keeps the given order as Tree.intersect's
         does), "auto" (the default) when a probe of the rays also walks at
-        least 4 nodes a ray (the top level's and the mesh trees' together),
+        least 16 nodes a ray (the top level's and the mesh trees' together),
         "given" in the caller's order; the same hits in every order, in the
         caller's order. Leaf
         culling (`cull=True`) is not offered in two levels."""
