@@ -134,8 +134,7 @@ void bind_instanced(nb::module_& m) {
     m.def(
         "orders_instanced_rays",
         [](const InstancedScene& scene, Vec3Array origins, Vec3Array directions) {
-            const float zero = 0.0f, inf = INFINITY;
-            const RayBatch rays = unlimited_rays(origins, directions, zero, inf);
+            const RayBatch rays = unlimited_rays(origins, directions);
             nb::gil_scoped_release release;
             return orders_batch(scene, rays, RayOrder::Auto);
         },

@@ -4,6 +4,7 @@
 // past an array.
 #pragma once
 #include <cstddef>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -63,17 +64,17 @@ inline HitBatch hit_batch(size_t rays, Out<float> t, Out<int32_t> prim, Out<floa
                     counter_column(rays, box_tests, "box_tests")};
 }
 
-// Rays over [zero, inf) for the ordering's questions (orders_rays):
-// `zero` and `inf` must outlive the batch.
-inline RayBatch unlimited_rays(Vec3Array origins, Vec3Array directions, const float& zero,
-                               const float& inf) {
+// Rays over [0, inf) for the ordering's questions (orders_rays): the shared
+// limits are constants, so the batch never outlives them.
+inline RayBatch unlimited_rays(Vec3Array origins, Vec3Array directions) {
+    static constexpr float kZero = 0.0f, kInf = std::numeric_limits<float>::infinity();
     if (origins.shape(0) != directions.shape(0))
         throw std::invalid_argument("origins and directions differ in length");
     RayBatch rays;
     rays.origins = origins.data();
     rays.directions = directions.data();
-    rays.tmin = &zero;
-    rays.tmax = &inf;
+    rays.tmin = &kZero;
+    rays.tmax = &kInf;
     rays.count = origins.shape(0);
     return rays;
 }

@@ -133,8 +133,7 @@ void bind_trace(nb::module_& m) {
     m.def(
         "orders_rays",
         [](Vec3Array origins, Vec3Array directions, const Tree* tree) {
-            const float zero = 0.0f, inf = INFINITY;
-            const RayBatch rays = unlimited_rays(origins, directions, zero, inf);
+            const RayBatch rays = unlimited_rays(origins, directions);
             if (!tree) return bsp::order_rays(rays, RayOrder::Spatial);
             nb::gil_scoped_release release;
             return bsp::orders_batch(*tree, rays, RayOrder::Auto);

@@ -9,7 +9,6 @@
 #include <cfloat>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <stdexcept>
 
 #include <emmintrin.h>
@@ -181,14 +180,14 @@ bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder or
     if (all_bvh) return false;
     // The probe of RayOrder::Auto: a few of the rays on the counting path,
     // on this thread; a step of the top level counts as one of a mesh tree.
-    const CountSteps count_steps = [&scene](const RayBatch& probe) {
-        ProbeHits counted(probe.count);
+    ProbeHits counted(kProbeGroup);
+    const CountSteps count_steps = [&scene, &counted](const RayBatch& probe) {
         HitBatch hits = counted.hits();
         InstanceHits extra{counted.instance.data(), counted.top_steps.data(),
                            counted.instance_visits.data()};
         intersect_instanced(scene, probe, hits, extra, 1, nullptr, RayOrder::Given);
-        return std::accumulate(counted.steps.begin(), counted.steps.end(), uint64_t(0)) +
-               std::accumulate(counted.top_steps.begin(), counted.top_steps.end(), uint64_t(0));
+        return counted.sum(counted.steps, probe.count) +
+               counted.sum(counted.top_steps, probe.count);
     };
     return order_rays(rays, order, count_steps, kOrderMinInstancedSteps);
 }

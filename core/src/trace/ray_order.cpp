@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <numeric>
 #include <utility>
 #include <vector>
 
@@ -53,6 +54,10 @@ bool walks_pay_for_order(const RayBatch& rays, const CountSteps& count_steps,
 ProbeHits::ProbeHits(size_t n)
     : t(n), u(n), v(n), prim(n), instance(n), steps(n), general_steps(n), tests(n), culled(n),
       box_tests(n), top_steps(n), instance_visits(n) {}
+
+uint64_t ProbeHits::sum(const std::vector<uint32_t>& counter, size_t n) {
+    return std::accumulate(counter.begin(), counter.begin() + std::ptrdiff_t(n), uint64_t(0));
+}
 
 HitBatch ProbeHits::hits() {
     HitBatch h{t.data(), prim.data(), u.data(), v.data()};

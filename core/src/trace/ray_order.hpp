@@ -64,11 +64,14 @@ bool order_rays(const RayBatch& rays, RayOrder order, const CountSteps& count_st
 // by the probe above.
 bool walks_pay_for_order(const RayBatch& rays, const CountSteps& count_steps, uint32_t min_steps);
 
-// The counting path's output for a probe's few rays: hits and every
-// counter, an instanced scene's included.
+// The counting path's output for a group of a probe's rays (at most the
+// size it was made for): hits and every counter, an instanced scene's
+// included. One per probe, re-used by its groups.
 struct ProbeHits {
     explicit ProbeHits(size_t n);
     HitBatch hits();
+    // A counter's sum over the group's first `n` rays.
+    static uint64_t sum(const std::vector<uint32_t>& counter, size_t n);
     std::vector<float> t, u, v;
     std::vector<int32_t> prim, instance;
     std::vector<uint32_t> steps, general_steps, tests, culled, box_tests, top_steps,

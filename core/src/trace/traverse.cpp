@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <bit>
 #include <cstdlib>
-#include <numeric>
 #include <string>
 #include <stdexcept>
 
@@ -83,11 +82,11 @@ bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order) {
     if (tree.structure == Structure::Bvh) return false;
     // The probe of RayOrder::Auto: a few of the rays on the counting path,
     // without culling (which skips tests, not nodes), on this thread.
-    const CountSteps count_steps = [&tree](const RayBatch& probe) {
-        ProbeHits counted(probe.count);
+    ProbeHits counted(kProbeGroup);
+    const CountSteps count_steps = [&tree, &counted](const RayBatch& probe) {
         run(selected_kernels().single_ray[1][int(LeafBoxes::None)], tree, probe, counted.hits(),
             1, nullptr);
-        return std::accumulate(counted.steps.begin(), counted.steps.end(), uint64_t(0));
+        return counted.sum(counted.steps, probe.count);
     };
     return order_rays(rays, order, count_steps);
 }
