@@ -396,7 +396,8 @@ class InstancedTree:
         or more sorted by the rays' origins and directions (unless every mesh
         tree is a BVH, which keeps the given order as Tree.intersect's
         does), "auto" (the default) when a probe of the rays also walks at
-        least 16 nodes a ray (the top level's and the mesh trees' together),
+        least 16 nodes a ray (the top level's and the mesh trees' together;
+        8 when traced on one thread),
         "given" in the caller's order; the same hits in every order, in the
         caller's order. Leaf
         culling (`cull=True`) is not offered in two levels."""

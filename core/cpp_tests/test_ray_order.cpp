@@ -253,6 +253,14 @@ TEST(OrderedRays, TheProbeSortsOnlyLongWalks) {
     EXPECT_FALSE(order_rays(r.batch, RayOrder::Auto, count, kOrderMinInstancedSteps));
     per_ray = kOrderMinInstancedSteps;
     EXPECT_TRUE(order_rays(r.batch, RayOrder::Auto, count, kOrderMinInstancedSteps));
+    // The bars by thread count: half on one thread, in both kinds of scene.
+    EXPECT_EQ(order_min_steps(false, 2), kOrderMinSteps);
+    EXPECT_EQ(order_min_steps(true, 2), kOrderMinInstancedSteps);
+    EXPECT_EQ(order_min_steps(false, 1), kOrderMinSteps / 2);
+    EXPECT_EQ(order_min_steps(true, 1), kOrderMinInstancedSteps / 2);
+    per_ray = order_min_steps(false, 1);
+    EXPECT_TRUE(order_rays(r.batch, RayOrder::Auto, count, order_min_steps(false, 1)));
+    EXPECT_FALSE(order_rays(r.batch, RayOrder::Auto, count, order_min_steps(false, 2)));
     // A coherent or short batch is not probed.
     calls = 0;
     r.batch.count = kOrderMinRays - 1;

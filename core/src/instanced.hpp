@@ -134,8 +134,9 @@ struct InstanceHits {
 };
 
 // Whether intersect_instanced()'s hits-only path traces this batch in
-// spatial order (ray_order.hpp): never when every mesh tree is a BVH.
-bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder order);
+// spatial order (ray_order.hpp) on `threads` threads (0: all): never when
+// every mesh tree is a BVH.
+bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder order, int threads);
 
 // Closest hits: hits.prim is the triangle's index in its mesh.
 // Without counter arrays an incoherent batch is traced in spatial order

@@ -3,11 +3,12 @@
 The sort's cost does not depend on the walk, so rays that mostly miss the
 scene trace slower sorted; `ray_order="auto"` (the default) sorts a batch
 only when a probe of it walks at least 8 nodes a ray in a tree, 16 in an
-instanced scene (core/src/trace/ray_order.hpp). Per scene or world and per
-`--scales` factor, random rays (origins uniform in a box that many times the
+instanced scene, half of each on one thread (core/src/trace/ray_order.hpp).
+Per scene or world and per `--scales` factor, random rays (origins uniform in a box that many times the
 scene's, or the instances', box about its centre; directions on the sphere)
 traced hits only: the mean steps of the probe's 128 rays (counting path; an
-instanced scene's top level and mesh trees), whether "auto" sorts the batch,
+instanced scene's top level and mesh trees), whether "auto" sorts the batch
+on one thread and on all,
 and the times sorted ("spatial") and under "auto" over the given order's,
 best of `--rounds`, on one thread and on all of them. Prints one Markdown
 row per case (docs/performance.md, "Sorted only where the walks pay").
@@ -59,7 +60,7 @@ def main() -> None:
     p.add_argument("--rays", type=int, default=250_000)
     p.add_argument("--rounds", type=int, default=5)
     a = p.parse_args()
-    print("| scene | box | probe steps a ray | auto sorts | 1 thread: spatial / auto ÷ given "
+    print("| scene | box | probe steps a ray | auto sorts, 1 / all threads | 1 thread: spatial / auto ÷ given "
           "| all threads: spatial / auto ÷ given |\n|---|---:|---:|---|---|---|")
     cases = [(name, False) for name in a.scenes] + [(name, True) for name in a.worlds]
     for name, instanced in cases:
@@ -78,11 +79,12 @@ def main() -> None:
             probe = (np.arange(PROBE_RAYS) * (len(o) - 1)) // (PROBE_RAYS - 1)
             counted = tracer.intersect(o[probe], d[probe], threads=1)
             steps = counted["steps"] + (counted["top_steps"] if instanced else 0)
-            sorts = (bsplab._core.orders_instanced_rays(tracer._scene, o, d) if instanced
-                     else bsplab._core.orders_rays(o, d, tracer._tree))
+            sorts = [bsplab._core.orders_instanced_rays(tracer._scene, o, d, threads=t)
+                     if instanced else bsplab._core.orders_rays(o, d, tracer._tree, threads=t)
+                     for t in (1, 0)]
             one = best_ratios(tracer, o, d, 1, a.rounds)
             every = best_ratios(tracer, o, d, 0, a.rounds)
-            print(f"| {name} | {scale:g} | {float(np.mean(steps)):.1f} | {sorts} | "
+            print(f"| {name} | {scale:g} | {float(np.mean(steps)):.1f} | {sorts[0]} / {sorts[1]} | "
                   f"{one['spatial']:.3f} / {one['auto']:.3f} | "
                   f"{every['spatial']:.3f} / {every['auto']:.3f} |", flush=True)
 

@@ -133,14 +133,14 @@ void bind_instanced(nb::module_& m) {
           "ray_order"_a = 0);
     m.def(
         "orders_instanced_rays",
-        [](const InstancedScene& scene, Vec3Array origins, Vec3Array directions) {
+        [](const InstancedScene& scene, Vec3Array origins, Vec3Array directions, int threads) {
             const RayBatch rays = unlimited_rays(origins, directions);
             nb::gil_scoped_release release;
-            return orders_batch(scene, rays, RayOrder::Auto);
+            return orders_batch(scene, rays, RayOrder::Auto, threads);
         },
-        "scene"_a, "origins"_a, "directions"_a,
+        "scene"_a, "origins"_a, "directions"_a, "threads"_a = 0,
         "Whether the instanced hits-only path traces these rays (tmin 0, tmax inf) in spatial "
-        "order under ray_order='auto'.");
+        "order under ray_order='auto' on `threads` threads (0: all).");
 }
 
 }  // namespace bsp::bindings

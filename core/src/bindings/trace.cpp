@@ -132,16 +132,17 @@ void bind_trace(nb::module_& m) {
         "origins"_a, "directions"_a, "All finite, no zero direction (checks.rays names the bad ones).");
     m.def(
         "orders_rays",
-        [](Vec3Array origins, Vec3Array directions, const Tree* tree) {
+        [](Vec3Array origins, Vec3Array directions, const Tree* tree, int threads) {
             const RayBatch rays = unlimited_rays(origins, directions);
             if (!tree) return bsp::order_rays(rays, RayOrder::Spatial);
             nb::gil_scoped_release release;
-            return bsp::orders_batch(*tree, rays, RayOrder::Auto);
+            return bsp::orders_batch(*tree, rays, RayOrder::Auto, threads);
         },
-        "origins"_a, "directions"_a, "tree"_a = nb::none(),
+        "origins"_a, "directions"_a, "tree"_a = nb::none(), "threads"_a = 0,
         "Whether the single-ray hits-only path of a kd or BSP tree traces these rays (tmin 0, "
         "tmax inf) in spatial order: under ray_order='spatial' (no tree given), or under "
-        "ray_order='auto' through `tree`, whose probe of the rays' walks decides too.");
+        "ray_order='auto' through `tree` on `threads` threads (0: all), whose probe of the "
+        "rays' walks decides too.");
     m.def("intersect", &intersect, "tree"_a, "origins"_a, "directions"_a, "tmin"_a, "tmax"_a,
           "t"_a, "prim"_a, "u"_a, "v"_a, "steps"_a.none(), "general_steps"_a.none(),
           "tests"_a.none(), "culled"_a.none(), "box_tests"_a.none(), "threads"_a, "cull"_a, "progress"_a.none(),

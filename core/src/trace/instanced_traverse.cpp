@@ -171,7 +171,8 @@ float scene_max_of(const InstancedScene& scene) {
 
 }  // namespace
 
-bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder order) {
+bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder order,
+                  int threads) {
     // As for a single BVH, a scene whose mesh trees are all BVHs keeps the
     // given order: on two threads it measured 0.5 - 6.5 % slower sorted.
     const bool all_bvh = std::all_of(scene.meshes.begin(), scene.meshes.end(), [](const Tree* t) {
@@ -189,7 +190,8 @@ bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder or
         return counted.sum(counted.steps, probe.count) +
                counted.sum(counted.top_steps, probe.count);
     };
-    return order_rays(rays, order, count_steps, kOrderMinInstancedSteps);
+    return order_rays(rays, order, count_steps,
+                      order_min_steps(true, resolve_threads(threads)));
 }
 
 void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitBatch& hits,
@@ -347,7 +349,7 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
     // hits, the instance index written back with them. Neighbouring rays
     // then enter the same instances and walk the same nodes of the top
     // level and of the mesh trees (docs/instances.md has the gain).
-    if (counting || !orders_batch(scene, rays, order)) {
+    if (counting || !orders_batch(scene, rays, order, threads)) {
         trace_batch(rays, hits, extra);
         return;
     }

@@ -62,7 +62,7 @@ void run(TraceRange trace, const Tree& tree, const RayBatch& rays, const HitBatc
 // rays in their spatial order (ray_order.hpp), the same hits.
 void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
                    const HitBatch& out, int threads, Progress* progress, RayOrder order) {
-    if (!orders_batch(tree, rays, order)) {
+    if (!orders_batch(tree, rays, order, threads)) {
         run(trace, tree, rays, out, threads, progress);
         return;
     }
@@ -78,7 +78,7 @@ void run_hits_only(TraceRange trace, const Tree& tree, const RayBatch& rays,
 
 }  // namespace
 
-bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order) {
+bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order, int threads) {
     if (tree.structure == Structure::Bvh) return false;
     // The probe of RayOrder::Auto: a few of the rays on the counting path,
     // without culling (which skips tests, not nodes), on this thread.
@@ -88,7 +88,8 @@ bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order) {
             1, nullptr);
         return counted.sum(counted.steps, probe.count);
     };
-    return order_rays(rays, order, count_steps);
+    return order_rays(rays, order, count_steps,
+                      order_min_steps(false, resolve_threads(threads)));
 }
 
 void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threads, bool cull,

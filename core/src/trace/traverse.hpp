@@ -57,8 +57,9 @@ void intersect(const Tree& tree, const RayBatch& rays, HitBatch& hits, int threa
                Progress* progress = nullptr, RayOrder order = RayOrder::Auto);
 
 // Whether intersect()'s hits-only path traces this batch in spatial order
-// (ray_order.hpp): never on a BVH, which keeps the given order.
-bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order);
+// (ray_order.hpp) on `threads` threads (0: all): never on a BVH, which keeps
+// the given order.
+bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order, int threads);
 
 // The same closest hits, traced in packets of consecutive rays (as many as
 // the selected level's SIMD lanes; kernels/packet.hpp): fast when consecutive

@@ -158,7 +158,7 @@ def box_rays(lo, hi, scale: float, n: int, seed: int):
 def test_auto_order_sorts_only_batches_whose_walks_pay():
     """ray_order="auto" (the default) sorts an incoherent batch only when a
     probe of its rays walks at least 8 nodes a ray (ray_order.hpp's
-    kOrderMinSteps): random rays in the room's box walk about 23, rays from
+    kOrderMinSteps; 4 on one thread, below): random rays in the room's box walk about 23, rays from
     a box ten times its size mostly miss the room and walk less than one,
     too few for the sort to pay. Both batches are incoherent ("spatial"
     sorts both), and every order gives the same hits. A BVH never sorts."""
@@ -170,7 +170,7 @@ def test_auto_order_sorts_only_batches_whose_walks_pay():
         assert orders(o, d), scale
         counted = tree.intersect(o, d)
         assert (counted["steps"].mean() >= 8) == walks, (scale, counted["steps"].mean())
-        assert bsplab._core.orders_rays(o, d, tree._tree) == walks, scale
+        assert bsplab._core.orders_rays(o, d, tree._tree, threads=2) == walks, scale
         for order in ("auto", "spatial", "given"):
             assert_same(tree.intersect(o, d, counters=False, ray_order=order, threads=2),
                         counted, f"{order} order, box x {scale}")
@@ -181,7 +181,7 @@ def test_auto_order_sorts_only_batches_whose_walks_pay():
 def test_auto_order_in_an_instanced_scene():
     """The same in two levels, where the probe's walk is the top level's and
     the mesh trees' steps together and the bar is 16
-    (kOrderMinInstancedSteps); a scene of BVH mesh trees never sorts."""
+    (kOrderMinInstancedSteps; 8 on one thread); a scene of BVH mesh trees never sorts."""
     it = build_world("touching", "kd")
     root = it.top_boxes(max_depth=0)
     for scale, walks in ((1.0, True), (10.0, False)):
@@ -190,13 +190,46 @@ def test_auto_order_in_an_instanced_scene():
         counted = it.intersect(o, d)
         walk = (counted["steps"] + counted["top_steps"]).mean()
         assert (walk >= 16) == walks, (scale, walk)
-        assert bsplab._core.orders_instanced_rays(it._scene, o, d) == walks, scale
+        assert bsplab._core.orders_instanced_rays(it._scene, o, d, threads=2) == walks, scale
         for order in ("auto", "spatial", "given"):
             assert_same_instanced(it.intersect(o, d, counters=False, ray_order=order),
                                   counted, f"{order} order, box x {scale}")
         if walks:
             bvh = build_world("touching", "bvh")
             assert not bsplab._core.orders_instanced_rays(bvh._scene, o, d)
+
+
+def test_auto_order_halves_its_bar_on_one_thread():
+    """On one thread the bars are 4 and 8 steps a ray (ray_order.hpp's
+    kOrderMinStepsOneThread, kOrderMinInstancedStepsOneThread): the sort
+    runs on one thread whatever the trace's count, so beside a one-thread
+    trace it pays for shorter walks. Rays from a box twice the room's walk
+    about 4.6 nodes, and rays from 1.5 times the touching world's box about
+    9 (top level and mesh trees): sorted on one thread, not on two, with
+    the same hits either way."""
+    tris = load_scene("gen:room")
+    tree = bsplab.build(tris, "kd")
+    lo, hi = workloads.bounds(tris)
+    o, d = box_rays(lo, hi, 2.0, MIN_RAYS + 100, seed=21)
+    counted = tree.intersect(o, d)
+    assert 4 <= counted["steps"].mean() < 8, counted["steps"].mean()
+    assert bsplab._core.orders_rays(o, d, tree._tree, threads=1)
+    assert not bsplab._core.orders_rays(o, d, tree._tree, threads=2)
+    for threads in (1, 2):
+        assert_same(tree.intersect(o, d, counters=False, threads=threads), counted,
+                    f"auto order, {threads} threads")
+
+    it = build_world("touching", "kd")
+    root = it.top_boxes(max_depth=0)
+    o, d = box_rays(root["lo"][0], root["hi"][0], 1.5, MIN_RAYS + 100, seed=23)
+    counted = it.intersect(o, d)
+    walk = (counted["steps"] + counted["top_steps"]).mean()
+    assert 8 <= walk < 16, walk
+    assert bsplab._core.orders_instanced_rays(it._scene, o, d, threads=1)
+    assert not bsplab._core.orders_instanced_rays(it._scene, o, d, threads=2)
+    for threads in (1, 2):
+        assert_same_instanced(it.intersect(o, d, counters=False, threads=threads), counted,
+                              f"auto order, {threads} threads")
 
 
 def test_ray_order_is_checked():
