@@ -42,83 +42,200 @@ double normalise_scale(std::vector<Triangle>& triangles) {
 
 using Direction = std::tuple<float, float, float>;
 
+// The statistics of a walk over a part of the pointer tree, all but the SAH
+// cost (summed from the flat tree, in its order: finish() below). Parts are
+// walked on threads of their own and merged; every sum here is of integers
+// (the leaf depths too, exact in a double), so the order does not matter.
 struct StatsWalker {
-    const CostModel cost;
-    BuildStats& st;
-    double inv_root_area = 0;
+    uint64_t interior_nodes = 0, kd_nodes = 0, general_nodes = 0;
+    uint64_t leaves = 0, empty_leaves = 0, references = 0, max_leaf_size = 0;
+    int max_depth = 0;
     double leaf_depth_sum = 0;
     uint64_t single_leaves = 0;  // one-reference leaves: inlined unless boxes are clipped
     std::vector<std::vector<Direction>> level_dirs{};  // general nodes' normals per level
     std::vector<uint8_t> level_axes{};                 // per level: a bit per kd axis used
     std::vector<uint64_t> level_planes{};              // per level: interior nodes
 
-    void walk(const BuildNode& n, int depth) {
-        const double p = double(n.area) * inv_root_area;
-        st.max_depth = std::max(st.max_depth, depth);
-        st.sah_cost += cost.tree_term(p, n.kind, n.count);
+    // Counts one node; false for a leaf.
+    bool visit(const BuildNode& n, int depth) {
+        max_depth = std::max(max_depth, depth);
         if (n.kind == NodeKind::Leaf) {
-            ++st.leaves;
+            ++leaves;
             const uint64_t c = n.count;
-            if (c == 0) ++st.empty_leaves;
+            if (c == 0) ++empty_leaves;
             if (c == 1) ++single_leaves;
-            st.references += c;
-            st.max_leaf_size = std::max(st.max_leaf_size, c);
+            references += c;
+            max_leaf_size = std::max(max_leaf_size, c);
             leaf_depth_sum += depth;
-            return;
+            return false;
         }
-        ++st.interior_nodes;
-        if (level_dirs.size() <= size_t(depth)) {
-            level_dirs.resize(depth + 1);
-            level_axes.resize(depth + 1);
-            level_planes.resize(depth + 1);
-        }
+        ++interior_nodes;
+        grow(size_t(depth) + 1);
         ++level_planes[depth];
         if (is_kd(n.kind)) {
             // A bit, not a direction per node: a kd tree has a million nodes
             // and three directions, and sorting their copies showed up in
             // the build's profile.
-            ++st.kd_nodes;
+            ++kd_nodes;
             level_axes[depth] |= uint8_t(1u << axis_of(n.kind));
         } else {
-            ++st.general_nodes;
+            ++general_nodes;
             level_dirs[depth].emplace_back(n.plane.nx, n.plane.ny, n.plane.nz);
         }
+        return true;
+    }
+
+    void walk(const BuildNode& n, int depth) {
+        if (!visit(n, depth)) return;
         walk(*n.child[0], depth + 1);
         walk(*n.child[1], depth + 1);
     }
+
+    void merge(const StatsWalker& o) {
+        interior_nodes += o.interior_nodes;
+        kd_nodes += o.kd_nodes;
+        general_nodes += o.general_nodes;
+        leaves += o.leaves;
+        empty_leaves += o.empty_leaves;
+        references += o.references;
+        max_leaf_size = std::max(max_leaf_size, o.max_leaf_size);
+        max_depth = std::max(max_depth, o.max_depth);
+        leaf_depth_sum += o.leaf_depth_sum;
+        single_leaves += o.single_leaves;
+        grow(o.level_planes.size());
+        for (size_t d = 0; d < o.level_planes.size(); ++d) {
+            level_planes[d] += o.level_planes[d];
+            level_axes[d] |= o.level_axes[d];
+            level_dirs[d].insert(level_dirs[d].end(), o.level_dirs[d].begin(), o.level_dirs[d].end());
+        }
+    }
+
+private:
+    void grow(size_t levels) {
+        if (level_planes.size() >= levels) return;
+        level_dirs.resize(levels);
+        level_axes.resize(levels);
+        level_planes.resize(levels);
+    }
 };
 
+// Where a part of the tree starts in each flat array. A node takes one
+// entry of `nodes` and one of `terms` (its SAH term, at its index); a leaf
+// its references (unless inlined) and, with clipped leaf boxes, their
+// boxes; a general node its plane, after its children's planes.
+struct FlatCursor {
+    uint64_t node = 0, ref = 0, plane = 0, box = 0;
+};
+
+// What a part of the tree adds to each flat array.
+FlatCursor flat_sizes(const StatsWalker& w, bool clipped) {
+    FlatCursor c;
+    c.node = w.interior_nodes + w.leaves;
+    c.ref = w.references - (clipped ? 0 : w.single_leaves);
+    c.plane = w.general_nodes;
+    c.box = clipped ? w.references : 0;
+    return c;
+}
+
+// Writes a subtree into the flat arrays (sized beforehand) in depth-first
+// order, the child below the plane first, from `at` on; the arrays are
+// shared by the threads writing disjoint parts of them.
 struct Flattener {
     Tree& tree;
+    const CostModel& cost;
+    double inv_root_area;
+    double* terms;  // each node's SAH term, at its index
+    FlatCursor at;
 
     uint32_t emit(const BuildNode& n) {
-        if (tree.nodes.size() >= kMaxNodes) throw std::length_error("tree exceeds 2^29 nodes");
-        const uint32_t index = uint32_t(tree.nodes.size());
+        const uint32_t index = uint32_t(at.node++);
+        terms[index] = cost.tree_term(double(n.area) * inv_root_area, n.kind, n.count);
         if (n.kind == NodeKind::Leaf) {
             if (n.count > kMaxLeafCount) throw std::length_error("a leaf exceeds 2^29 references");
             const uint32_t count = n.count;
             const bool clipped = tree.options.leaf_boxes == LeafBoxes::Clipped;
-            if (clipped) tree.boxes.insert(tree.boxes.end(), n.ref_boxes, n.ref_boxes + count);
+            if (clipped) {
+                std::copy(n.ref_boxes, n.ref_boxes + count, tree.boxes.begin() + std::ptrdiff_t(at.box));
+                at.box += count;
+            }
             if (count == 1 && !clipped) {
-                tree.nodes.push_back(Node::leaf(n.refs[0], 1));
+                tree.nodes[index] = Node::leaf(n.refs[0], 1);
             } else {
-                tree.nodes.push_back(Node::leaf(uint32_t(tree.refs.size()), count));
-                tree.refs.insert(tree.refs.end(), n.refs, n.refs + count);
+                tree.nodes[index] = Node::leaf(uint32_t(at.ref), count);
+                std::copy(n.refs, n.refs + count, tree.refs.begin() + std::ptrdiff_t(at.ref));
+                at.ref += count;
             }
             return index;
         }
-        tree.nodes.push_back(Node());
         emit(*n.child[0]);
         const uint32_t above = emit(*n.child[1]);
+        write_interior(n, index, above);
+        return index;
+    }
+
+    // An interior node, once its children are placed: a general node's
+    // plane goes after its children's planes.
+    void write_interior(const BuildNode& n, uint32_t index, uint32_t above) {
         if (is_kd(n.kind)) {
             tree.nodes[index] = Node::kd(axis_of(n.kind), n.split, above);
         } else {
-            tree.nodes[index] = Node::general(uint32_t(tree.planes.size()), above);
-            tree.planes.push_back(n.plane);
+            tree.nodes[index] = Node::general(uint32_t(at.plane), above);
+            tree.planes[at.plane++] = n.plane;
         }
-        return index;
     }
 };
+
+// The finish splits the tree at this depth: the nodes there (and the
+// leaves above) are walked, counted and flattened on the build's threads,
+// the interior nodes above on the calling thread. At depth 6, at most 64
+// parts for the threads to share out. A finish on one thread, or of a tree
+// over fewer than kFinishPartTriangles triangles (whose walk is shorter
+// than starting a thread), walks the whole tree as one part.
+constexpr int kFinishPartDepth = 6;
+constexpr size_t kFinishPartTriangles = size_t(1) << 14;
+
+struct Part {
+    const BuildNode* root;
+    int depth;
+    StatsWalker stats{};
+    FlatCursor at{};
+};
+
+// The parts below `n` in depth-first order; the interior nodes above them
+// are counted into `top`.
+void collect_parts(const BuildNode& n, int depth, int part_depth, std::vector<Part>& parts,
+                   StatsWalker& top) {
+    if (n.kind == NodeKind::Leaf || depth == part_depth) {
+        parts.push_back({&n, depth});
+        return;
+    }
+    top.visit(n, depth);
+    collect_parts(*n.child[0], depth + 1, part_depth, parts, top);
+    collect_parts(*n.child[1], depth + 1, part_depth, parts, top);
+}
+
+// Places the nodes above the parts and each part's start, in the order the
+// depth-first flattening of the whole tree gives them; writes those nodes.
+// Returns the flat index of `n`.
+uint32_t place_parts(const BuildNode& n, int depth, int part_depth, std::vector<Part>& parts,
+                     size_t& next_part, Flattener& top) {
+    if (n.kind == NodeKind::Leaf || depth == part_depth) {
+        Part& part = parts[next_part++];
+        part.at = top.at;
+        const FlatCursor size = flat_sizes(part.stats, top.tree.options.leaf_boxes == LeafBoxes::Clipped);
+        top.at.node += size.node;
+        top.at.ref += size.ref;
+        top.at.plane += size.plane;
+        top.at.box += size.box;
+        return uint32_t(part.at.node);
+    }
+    const uint32_t index = uint32_t(top.at.node++);
+    top.terms[index] = top.cost.tree_term(double(n.area) * top.inv_root_area, n.kind, n.count);
+    place_parts(*n.child[0], depth + 1, part_depth, parts, next_part, top);
+    const uint32_t above = place_parts(*n.child[1], depth + 1, part_depth, parts, next_part, top);
+    top.write_interior(n, index, above);
+    return index;
+}
 
 }  // namespace
 
@@ -179,9 +296,29 @@ std::vector<std::string> degeneracy_warnings(const BuildStats& st) {
 
 void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
     BuildStats& st = tree.stats;
-    StatsWalker w{CostModel(tree.options), st};
-    w.inv_root_area = root.area > 0 ? 1.0 / double(root.area) : 0.0;
-    w.walk(root, 0);
+    const CostModel cost(tree.options);
+    const bool clipped = tree.options.leaf_boxes == LeafBoxes::Clipped;
+    const int threads = resolve_threads(tree.options.threads);
+    // The parts, counted on the build's threads (the walk over the pointer
+    // tree was a twentieth of a two-thread kd build, on one thread).
+    const int part_depth =
+        threads > 1 && tree.triangles.size() >= kFinishPartTriangles ? kFinishPartDepth : 0;
+    std::vector<Part> parts;
+    StatsWalker w;
+    collect_parts(root, 0, part_depth, parts, w);
+    parallel_for(parts.size(), 1, threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) parts[i].stats.walk(*parts[i].root, parts[i].depth);
+    });
+    for (const Part& part : parts) w.merge(part.stats);
+
+    st.max_depth = w.max_depth;
+    st.interior_nodes = w.interior_nodes;
+    st.kd_nodes = w.kd_nodes;
+    st.general_nodes = w.general_nodes;
+    st.leaves = w.leaves;
+    st.empty_leaves = w.empty_leaves;
+    st.references = w.references;
+    st.max_leaf_size = w.max_leaf_size;
     st.mean_leaf_depth = st.leaves ? w.leaf_depth_sum / double(st.leaves) : 0.0;
     for (size_t depth = 0; depth < w.level_dirs.size(); ++depth) {
         std::vector<Direction>& dirs = w.level_dirs[depth];
@@ -198,7 +335,6 @@ void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
 
     // The flat tree's size is known before it is built: check the limit
     // first, then count the flat arrays while the pointer tree still exists.
-    const bool clipped = tree.options.leaf_boxes == LeafBoxes::Clipped;
     const uint64_t n_nodes = st.interior_nodes + st.leaves;
     const uint64_t n_refs = st.references - (clipped ? 0 : w.single_leaves);
     const uint64_t n_boxes = tree.options.leaf_boxes == LeafBoxes::Triangle ? tree.triangles.size()
@@ -219,15 +355,33 @@ void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
                               : "");
         budget.fail(budget.headline() + buf);
     }
+    if (n_nodes > kMaxNodes) throw std::length_error("tree exceeds 2^29 nodes");
     TaskCredit credit(budget);
     Charge flat_charge(credit, flat, -1, "the flat tree");
-    tree.nodes.reserve(n_nodes);
-    tree.refs.reserve(n_refs);
-    tree.planes.reserve(st.general_nodes);
-    tree.boxes.reserve(n_boxes);
+    // Each node's SAH term at its flat index, summed in that order below:
+    // the depth-first order the sum always had, whatever the threads.
+    Charge terms_charge(credit, n_nodes * sizeof(double), -1, "the tree's SAH terms");
+    std::vector<double> terms(n_nodes);
+    tree.nodes.resize(n_nodes);
+    tree.refs.resize(n_refs);
+    tree.planes.resize(st.general_nodes);
+    tree.boxes.resize(clipped ? n_boxes : 0);
 
-    Flattener{tree}.emit(root);
+    const double inv_root_area = root.area > 0 ? 1.0 / double(root.area) : 0.0;
+    Flattener top{tree, cost, inv_root_area, terms.data(), FlatCursor{}};
+    size_t next_part = 0;
+    place_parts(root, 0, part_depth, parts, next_part, top);
+    parallel_for(parts.size(), 1, threads, [&](size_t b, size_t e) {
+        for (size_t i = b; i < e; ++i) {
+            Flattener f{tree, cost, inv_root_area, terms.data(), parts[i].at};
+            f.emit(*parts[i].root);
+        }
+    });
+    st.sah_cost = 0;
+    for (const double t : terms) st.sah_cost += t;
+
     if (tree.options.leaf_boxes == LeafBoxes::Triangle) {
+        tree.boxes.reserve(tree.triangles.size());
         for (const Triangle& t : tree.triangles) tree.boxes.push_back(t.bounds());
     }
     tree.cull_pad = 2.0f * robust_epsilon(tree.triangles);
