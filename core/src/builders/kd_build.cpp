@@ -523,8 +523,8 @@ private:
                 uint64_t word;
                 std::memcpy(&word, &e, sizeof word);
                 const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;  // key >> 2
-                std::memcpy(l, &word, sizeof word);
-                std::memcpy(r, &word, sizeof word);
+                std::memcpy(static_cast<void*>(l), &word, sizeof word);
+                std::memcpy(static_cast<void*>(r), &word, sizeof word);
                 l += sd & 1u;
                 r += sd >> 1;
             }
@@ -539,8 +539,8 @@ private:
                 const uint32_t sd = marks[uint32_t(word >> 34)] & 3u;
                 const uint32_t start = ((word >> 32) & 3u) == kStart;
                 const uint32_t whole = sd != kCut;
-                std::memcpy(l, &word, sizeof word);
-                std::memcpy(r, &word, sizeof word);
+                std::memcpy(static_cast<void*>(l), &word, sizeof word);
+                std::memcpy(static_cast<void*>(r), &word, sizeof word);
                 l += (sd & 1u) & (start | whole);
                 r += (sd >> 1) & ((start ^ 1u) | whole);
             }
