@@ -99,9 +99,9 @@ class Tree:
         the same nodes (1.25-1.4x faster on random rays; docs/performance.md);
         "auto" (the default) does so when a probe of 128 of the rays walks at
         least 8 nodes a ray (4 when traced on one thread), since rays that
-        mostly miss the scene walk too few for the sort to pay; "given" keeps the caller's order. The hits
-        are the same in every order, bit for bit, and come back in the
-        caller's order."""
+        mostly miss the scene walk too few for the sort to pay; "given"
+        keeps the caller's order. The hits are the same in every order, bit
+        for bit, and come back in the caller's order."""
         cull, counters, packets = checks.trace_flags(cull, counters, packets)
         order = checks.ray_order(ray_order)
         o, d = checks.rays(origins, directions)

@@ -147,9 +147,15 @@ struct Flattener {
     double* terms;  // each node's SAH term, at its index
     FlatCursor at;
 
-    uint32_t emit(const BuildNode& n) {
+    // The next flat index, for `n`, with its SAH term.
+    uint32_t claim(const BuildNode& n) {
         const uint32_t index = uint32_t(at.node++);
         terms[index] = cost.tree_term(double(n.area) * inv_root_area, n.kind, n.count);
+        return index;
+    }
+
+    uint32_t emit(const BuildNode& n) {
+        const uint32_t index = claim(n);
         if (n.kind == NodeKind::Leaf) {
             if (n.count > kMaxLeafCount) throw std::length_error("a leaf exceeds 2^29 references");
             const uint32_t count = n.count;
@@ -229,8 +235,7 @@ uint32_t place_parts(const BuildNode& n, int depth, int part_depth, std::vector<
         top.at.box += size.box;
         return uint32_t(part.at.node);
     }
-    const uint32_t index = uint32_t(top.at.node++);
-    top.terms[index] = top.cost.tree_term(double(n.area) * top.inv_root_area, n.kind, n.count);
+    const uint32_t index = top.claim(n);
     place_parts(*n.child[0], depth + 1, part_depth, parts, next_part, top);
     const uint32_t above = place_parts(*n.child[1], depth + 1, part_depth, parts, next_part, top);
     top.write_interior(n, index, above);
@@ -335,8 +340,9 @@ void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
 
     // The flat tree's size is known before it is built: check the limit
     // first, then count the flat arrays while the pointer tree still exists.
-    const uint64_t n_nodes = st.interior_nodes + st.leaves;
-    const uint64_t n_refs = st.references - (clipped ? 0 : w.single_leaves);
+    const FlatCursor sizes = flat_sizes(w, clipped);
+    const uint64_t n_nodes = sizes.node;
+    const uint64_t n_refs = sizes.ref;
     const uint64_t n_boxes = tree.options.leaf_boxes == LeafBoxes::Triangle ? tree.triangles.size()
                              : clipped                                    ? st.references
                                                                           : 0;
@@ -364,8 +370,8 @@ void finish(Tree& tree, const BuildNode& root, MemoryBudget& budget) {
     std::vector<double> terms(n_nodes);
     tree.nodes.resize(n_nodes);
     tree.refs.resize(n_refs);
-    tree.planes.resize(st.general_nodes);
-    tree.boxes.resize(clipped ? n_boxes : 0);
+    tree.planes.resize(sizes.plane);
+    tree.boxes.resize(sizes.box);
 
     const double inv_root_area = root.area > 0 ? 1.0 / double(root.area) : 0.0;
     Flattener top{tree, cost, inv_root_area, terms.data(), FlatCursor{}};

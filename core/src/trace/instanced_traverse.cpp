@@ -9,6 +9,7 @@
 #include <cfloat>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 #include <emmintrin.h>
@@ -181,14 +182,16 @@ bool orders_batch(const InstancedScene& scene, const RayBatch& rays, RayOrder or
     if (all_bvh) return false;
     // The probe of RayOrder::Auto: a few of the rays on the counting path,
     // on this thread; a step of the top level counts as one of a mesh tree.
-    ProbeHits counted(kProbeGroup);
+    // Made at the probe's first group, as for a tree (traverse.cpp).
+    std::optional<ProbeHits> counted;
     const CountSteps count_steps = [&scene, &counted](const RayBatch& probe) {
-        HitBatch hits = counted.hits();
-        InstanceHits extra{counted.instance.data(), counted.top_steps.data(),
-                           counted.instance_visits.data()};
+        if (!counted) counted.emplace(kProbeGroup);
+        HitBatch hits = counted->hits();
+        InstanceHits extra{counted->instance.data(), counted->top_steps.data(),
+                           counted->instance_visits.data()};
         intersect_instanced(scene, probe, hits, extra, 1, nullptr, RayOrder::Given);
-        return counted.sum(counted.steps, probe.count) +
-               counted.sum(counted.top_steps, probe.count);
+        return counted->sum(counted->steps, probe.count) +
+               counted->sum(counted->top_steps, probe.count);
     };
     return order_rays(rays, order, count_steps,
                       order_min_steps(true, resolve_threads(threads)));

@@ -37,10 +37,9 @@ constexpr int kOrderDirectionBits = 5;
 // traced up to 1.66 x slower sorted on two threads (docs/performance.md).
 // Under RayOrder::Auto an incoherent batch is sorted only when a probe of
 // its rays walks at least kOrderMinSteps nodes a ray in a tree, or
-// kOrderMinInstancedSteps in an instanced scene (half of each on one
-// thread, below) (top level and mesh trees
+// kOrderMinInstancedSteps in an instanced scene (top level and mesh trees
 // together: a two-level walk gains less from the order and its sort writes
-// one more column back). The probe: at most kProbeRays rays spread evenly
+// one more column back), half of each on one thread (below). The probe: at most kProbeRays rays spread evenly
 // over the batch, traced on the counting path (one thread) in groups of
 // kProbeGroup, stopping as soon as the steps reach the bar.
 constexpr uint32_t kOrderMinSteps = 8;
@@ -49,7 +48,7 @@ constexpr uint32_t kOrderMinInstancedSteps = 16;
 // thread whatever the trace's count, so beside a one-thread trace it weighs
 // half as much: there random rays walking 4.6 - 7.8 nodes a ray traced 7 -
 // 20 % faster sorted (bunny, conference, Šibenik), while at 1.9 - 3.5 the
-// sort gained at most 3 % or lost (docs/performance.md, "One thread, half
+// sort gained at most 5 % or lost (docs/performance.md, "One thread, half
 // the bar").
 constexpr uint32_t kOrderMinStepsOneThread = 4;
 constexpr uint32_t kOrderMinInstancedStepsOneThread = 8;

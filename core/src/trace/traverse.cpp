@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <bit>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <stdexcept>
 
@@ -82,11 +83,14 @@ bool orders_batch(const Tree& tree, const RayBatch& rays, RayOrder order, int th
     if (tree.structure == Structure::Bvh) return false;
     // The probe of RayOrder::Auto: a few of the rays on the counting path,
     // without culling (which skips tests, not nodes), on this thread.
-    ProbeHits counted(kProbeGroup);
+    // Made at the probe's first group: most batches (camera rays, short or
+    // coherent ones) are decided without a probe.
+    std::optional<ProbeHits> counted;
     const CountSteps count_steps = [&tree, &counted](const RayBatch& probe) {
-        run(selected_kernels().single_ray[1][int(LeafBoxes::None)], tree, probe, counted.hits(),
+        if (!counted) counted.emplace(kProbeGroup);
+        run(selected_kernels().single_ray[1][int(LeafBoxes::None)], tree, probe, counted->hits(),
             1, nullptr);
-        return counted.sum(counted.steps, probe.count);
+        return counted->sum(counted->steps, probe.count);
     };
     return order_rays(rays, order, count_steps,
                       order_min_steps(false, resolve_threads(threads)));
