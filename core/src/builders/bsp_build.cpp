@@ -14,6 +14,7 @@
 #include "builders/build_tree.hpp"
 #include "builders/cell.hpp"
 #include "builders/cost_model.hpp"
+#include "builders/projection_sort.hpp"
 #include "builders/strategies/directions.hpp"
 #include "builders/strategies/strategy.hpp"
 #include "builders/sweep_bins.hpp"
@@ -101,12 +102,13 @@ public:
             opt_.build_quality == BuildQuality::Fast && n >= size_t(std::max(opt_.fast_min_refs, 0));
 
         // The node's scratch space while it looks for a plane: its triangle
-        // ids, the sweeps' position arrays and the positions kept before
-        // the middle (at most one per event; per thread; a binned node's
+        // ids, the sweeps' position arrays with their sort's room and the
+        // positions kept before the middle (at most one per event; per
+        // thread; a binned node's
         // bins instead, per direction and chunk), BSP_IZE's reference BVH.
         const uint64_t sweep_bytes =
             binned ? binned_scratch_bytes(n)
-                   : uint64_t(n) * (3 * sizeof(float) + 2 * sizeof(SweepStop)) *
+                   : uint64_t(n) * (4 * sizeof(float) + 2 * sizeof(SweepStop)) *
                          uint64_t(threads_);
         Charge scratch(credit,
                        uint64_t(n) * (sizeof(uint32_t) +
@@ -384,7 +386,7 @@ private:
     // (__tls_get_addr), and inlined the compiler repeated it at every
     // push_back, 6 % of a build.
     struct SweepScratch {
-        std::vector<float> starts, ends, planars;
+        std::vector<float> starts, ends, planars, sort_tmp;
         std::vector<SweepStop> stops;
         CellProjection cp;
     };
@@ -411,7 +413,7 @@ private:
         res.fallback.cost = start.fallback.cost;
         const size_t n = nr.refs.size();
         SweepScratch& scratch = sweep_scratch();
-        auto& [starts, ends, planars, stops, cp] = scratch;
+        auto& [starts, ends, planars, sort_tmp, stops, cp] = scratch;
         starts.clear();
         ends.clear();
         planars.clear();
@@ -428,9 +430,9 @@ private:
                 ends.push_back(hi);
             }
         }
-        std::sort(starts.begin(), starts.end());
-        std::sort(ends.begin(), ends.end());
-        std::sort(planars.begin(), planars.end());
+        sort_projections(starts, sort_tmp);
+        sort_projections(ends, sort_tmp);
+        sort_projections(planars, sort_tmp);
 
         cp.project(cell, Vec3d(u));  // re-projected, it keeps its arrays
         const double clo = cp.lo(), chi = cp.hi();
