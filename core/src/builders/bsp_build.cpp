@@ -104,8 +104,8 @@ public:
         // The node's scratch space while it looks for a plane: its triangle
         // ids, the sweeps' position arrays with their sort's room and the
         // positions kept before the middle (at most one per event; per
-        // thread; a binned node's
-        // bins instead, per direction and chunk), BSP_IZE's reference BVH.
+        // thread; a binned node's bins instead, per direction and chunk),
+        // BSP_IZE's reference BVH.
         const uint64_t sweep_bytes =
             binned ? binned_scratch_bytes(n)
                    : uint64_t(n) * (4 * sizeof(float) + 2 * sizeof(SweepStop)) *
