@@ -1,9 +1,12 @@
 // A least-significant-digit radix sort of plain values by an integer key:
 // stable, so values of equal keys keep their order. The kd builder sorts its
-// events with it, the tracer its incoherent rays (trace/ray_order.cpp).
+// events with it, the sweep builder its long projection lists
+// (builders/projection_sort.hpp), the tracer its incoherent rays
+// (trace/ray_order.cpp).
 #pragma once
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <utility>
 #include <vector>
 
@@ -30,6 +33,16 @@ T* radix_sort(T* data, T* tmp, size_t n, KeyOf key_of) {
         std::swap(data, tmp);
     }
     return data;
+}
+
+// A float's bits made to order as the floats do (a key for radix_sort), -0
+// taken as +0, which compares equal to it: negative floats have all their
+// bits flipped, the others only their sign bit.
+inline uint32_t float_order_bits(float x) {
+    const float v = x == 0.0f ? 0.0f : x;
+    uint32_t u;
+    std::memcpy(&u, &v, sizeof u);
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
 }
 
 }  // namespace bsp

@@ -39,11 +39,7 @@ inline void radix_sort_events(std::vector<Event>& events, std::vector<Event>& tm
 // The event's sort key: its position's bits made to order as the floats do
 // (-0 taken as +0, which compares equal to it), then its type.
 inline uint64_t event_sort_key(const Event& e) {
-    uint32_t u;
-    const float pos = e.pos == 0.0f ? 0.0f : e.pos;
-    std::memcpy(&u, &pos, sizeof u);
-    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
-    return uint64_t(u) << 2 | e.type();
+    return uint64_t(float_order_bits(e.pos)) << 2 | e.type();
 }
 
 inline void radix_sort_events(std::vector<Event>& events, std::vector<Event>& tmp) {

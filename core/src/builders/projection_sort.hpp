@@ -5,13 +5,12 @@
 // in the nodes of a few hundred to a few thousand references, where an
 // interior's walls and floors keep many, those comparisons are about as
 // unpredictable as branches get. A radix sort has no data-dependent branch;
-// bsp_wn+kd K = 8 built conference in 0.79 of the time and bunny in 0.88
+// bsp_wn+kd K = 8 built conference in 0.78 of the time and bunny in 0.91
 // (docs/performance.md, "The sweep's sorts").
 #pragma once
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
-#include <cstring>
 #include <vector>
 
 #include "radix_sort.hpp"
@@ -23,27 +22,19 @@ namespace bsp {
 // as quick as 64 (bsp_wn+kd K = 8 on conference and bunny).
 constexpr size_t kRadixMinProjections = 256;
 
-// A float's bits made to order as the floats do, -0 taken as +0 (it
-// compares equal to it), as the kd builder's event key takes them.
-inline uint32_t projection_key(float x) {
-    const float v = x == 0.0f ? 0.0f : x;
-    uint32_t u;
-    std::memcpy(&u, &v, sizeof u);
-    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
-}
-
-// Sorts v ascending; tmp is scratch room. Both sorts give the same floats in
-// the same order (so the same trees): an ascending sequence of floats without
-// NaN is unique but for where -0 and +0 fall among its zeros. The radix sort
-// keeps those in the order they came; a projection is -0 only along an axis,
-// from a vertex at -0 whose other coordinates are both negative or -0.
+// Sorts v ascending (the radix sort's key: float_order_bits, -0 taken as
+// +0); tmp is scratch room. Both sorts give the same floats in the same
+// order (so the same trees): an ascending sequence of floats without NaN is
+// unique but for where -0 and +0 fall among its zeros. The radix sort keeps
+// those in the order they came; a projection is -0 only along an axis, from
+// a vertex at -0 whose other coordinates are both negative or -0.
 inline void sort_projections(std::vector<float>& v, std::vector<float>& tmp) {
     if (v.size() < kRadixMinProjections) {
         std::sort(v.begin(), v.end());
         return;
     }
     tmp.resize(v.size());
-    if (radix_sort<8, 4>(v.data(), tmp.data(), v.size(), projection_key) != v.data()) v.swap(tmp);
+    if (radix_sort<8, 4>(v.data(), tmp.data(), v.size(), float_order_bits) != v.data()) v.swap(tmp);
 }
 
 }  // namespace bsp

@@ -39,9 +39,10 @@ constexpr int kOrderDirectionBits = 5;
 // its rays walks at least kOrderMinSteps nodes a ray in a tree, or
 // kOrderMinInstancedSteps in an instanced scene (top level and mesh trees
 // together: a two-level walk gains less from the order and its sort writes
-// one more column back), half of each on one thread (below). The probe: at most kProbeRays rays spread evenly
-// over the batch, traced on the counting path (one thread) in groups of
-// kProbeGroup, stopping as soon as the steps reach the bar.
+// one more column back), half of each on one thread (below). The probe: at
+// most kProbeRays rays spread evenly over the batch, traced on the counting
+// path (one thread) in groups of kProbeGroup, stopping as soon as the steps
+// reach the bar.
 constexpr uint32_t kOrderMinSteps = 8;
 constexpr uint32_t kOrderMinInstancedSteps = 16;
 // A trace on one thread has half the bars. The radix sort runs on one
