@@ -697,6 +697,48 @@ struct PlaneCount {
     uint32_t below = 0, above = 0, both = 0, planar = 0;
 };
 
+// The planes a BSP_IZE node has tried, as their bits: an open-addressing
+// set sized for the node's planes at most half full, reused per thread.
+class PlaneSet {
+public:
+    void reset(size_t planes) {
+        size_t cap = 16;
+        while (cap < 2 * planes) cap *= 2;
+        keys_.assign(cap, Key{kEmpty, 0, 0, 0});
+        mask_ = cap - 1;
+    }
+    // False if the plane was in the set already.
+    bool insert(const Vec3& u, float d) {
+        const Key k{std::bit_cast<uint32_t>(u.x), std::bit_cast<uint32_t>(u.y),
+                    std::bit_cast<uint32_t>(u.z), std::bit_cast<uint32_t>(d)};
+        uint64_t h = (uint64_t(k.x) << 32 | k.y) * 0x9E3779B97F4A7C15ull ^
+                     (uint64_t(k.z) << 32 | k.d) * 0xC2B2AE3D27D4EB4Full;
+        h ^= h >> 29;
+        for (size_t i = size_t(h) & mask_;; i = (i + 1) & mask_) {
+            Key& slot = keys_[i];
+            if (slot.x == kEmpty) {
+                slot = k;
+                return true;
+            }
+            if (slot.x == k.x && slot.y == k.y && slot.z == k.z && slot.d == k.d) return false;
+        }
+    }
+
+private:
+    struct Key {
+        uint32_t x, y, z, d;
+    };
+    // A NaN's bits: no unit normal has them.
+    static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
+    std::vector<Key> keys_;
+    size_t mask_ = 0;
+};
+
+[[gnu::noinline]] PlaneSet& plane_set() {
+    thread_local PlaneSet set;
+    return set;
+}
+
 SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double area,
                                    Rng& rng, const SweepResult& start) const {
     SweepResult res;
@@ -787,7 +829,13 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
     // projection.
     Vec3 projected;
     bool has_projection = false;
+    // A plane tried before in this node is skipped: its counts and areas,
+    // so its cost, would be the same, and a candidate replaces the best
+    // only when strictly cheaper. Coplanar neighbours (a quad's two
+    // triangles, a wall's, a voxel scene's faces) share their planes.
+    PlaneSet& tried = plane_set();
     auto try_plane = [&](const Vec3& u, float d) {
+        if (!tried.insert(u, d)) return;
         int axis;
         const bool is_ax = is_axis(u, axis);
         const bool kd = opt_.kd_nodes && is_ax;
@@ -823,6 +871,7 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         std::sort(pick.begin(), pick.end());
         pick.erase(std::unique(pick.begin(), pick.end()), pick.end());
     }
+    tried.reset(5 * pick.size());
     for (uint32_t i : pick) {
         const Triangle& t = tris_[nr.refs[i].tri];
         const Vec3 nt = unit_normal(t);
