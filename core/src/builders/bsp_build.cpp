@@ -780,8 +780,10 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         bvh.nodes.push_back({Box(), mid, end});
     }
 
-    auto count = [&](const Vec3& u, bool is_ax, float d) {
-        PlaneCount pc;
+    // `hopeless(l, r)`: whether a plane with at least l references below
+    // and r above can no longer win; the walk then gives up (false).
+    auto count = [&](const Vec3& u, bool is_ax, float d, auto&& hopeless, PlaneCount& pc) {
+        auto ruled_out = [&] { return hopeless(pc.below + pc.both, pc.above + pc.both); };
         const Vec3d ud(u);
         // Box projections are conservative by a relative margin, so a whole
         // subtree is counted at once only when every reference in it is
@@ -798,10 +800,12 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
             const double margin = 1e-5 * (std::fabs(mid) + rad) + 2.0 * eps_ + 1e-30;
             if (mid + rad + margin < d) {
                 pc.below += node.end - node.begin;
+                if (ruled_out()) return false;
                 continue;
             }
             if (mid - rad - margin > d) {
                 pc.above += node.end - node.begin;
+                if (ruled_out()) return false;
                 continue;
             }
             if (node.child && top + 2 <= kRefBvhStack) {
@@ -817,8 +821,9 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
                 else if (lo >= d) ++pc.above;
                 else ++pc.both;
             }
+            if (ruled_out()) return false;
         }
-        return pc;
+        return true;
     };
 
     const double inv_area = 1.0 / area;
@@ -839,13 +844,6 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         int axis;
         const bool is_ax = is_axis(u, axis);
         const bool kd = opt_.kd_nodes && is_ax;
-        const PlaneCount pc = count(u, is_ax, d);
-        const uint32_t l = pc.below + pc.both, r = pc.above + pc.both;
-        // The cell is projected and its areas computed only where the
-        // counts alone do not rule the plane out (either check drops it).
-        if (!may_win(res, kd, n, l + pc.planar, r) &&
-            !(pc.planar && may_win(res, kd, n, l, r + pc.planar)))
-            return;
         // Bit for bit: a canonical normal's zero components can be -0.
         auto bits = [](float x) { return std::bit_cast<uint32_t>(x); };
         if (!has_projection || bits(u.x) != bits(projected.x) || bits(u.y) != bits(projected.y) ||
@@ -857,6 +855,20 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         if (!cp.cuts(double(d))) return;
         double below, above;
         cp.areas_at(double(d), below, above);
+        const double p_below = below * inv_area, p_above = above * inv_area;
+        // With the areas known, the counts so far bound the plane's cost:
+        // it only grows with them (and with both sides taken, no bonus).
+        auto hopeless = [&](uint32_t l, uint32_t r) {
+            if (l == 0 || r == 0) return false;
+            if (beats(cost_.split(cost_.step(kd, n), p_below, l, p_above, r), res.best.cost, false))
+                return false;
+            return !cost_.has_fallback(kd) ||
+                   !beats(cost_.split(cost_.fallback_step(), p_below, l, p_above, r),
+                          res.fallback.cost, false);
+        };
+        PlaneCount pc;
+        if (!count(u, is_ax, d, hopeless, pc)) return;
+        const uint32_t l = pc.below + pc.both, r = pc.above + pc.both;
         // Planar references first join the left (as split_refs() with planar_left).
         offer(res, u, kd, d, true, l + pc.planar, r, below, above, inv_area, n);
         if (pc.planar) offer(res, u, kd, d, false, l, r + pc.planar, below, above, inv_area, n);
