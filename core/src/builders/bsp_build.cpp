@@ -858,8 +858,11 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         const double p_below = below * inv_area, p_above = above * inv_area;
         // With the areas known, the counts so far bound the plane's cost:
         // it only grows with them (and with both sides taken, no bonus).
+        // A rounded area below zero (a sliver face) would break that, so
+        // such a plane is always counted to the end.
+        const bool bounded = p_below >= 0 && p_above >= 0;
         auto hopeless = [&](uint32_t l, uint32_t r) {
-            if (l == 0 || r == 0) return false;
+            if (!bounded || l == 0 || r == 0) return false;
             if (beats(cost_.split(cost_.step(kd, n), p_below, l, p_above, r), res.best.cost, false))
                 return false;
             return !cost_.has_fallback(kd) ||
