@@ -862,12 +862,8 @@ SweepResult BspBuilder::ize_planes(const NodeRefs& nr, const Cell& cell, double 
         // such a plane is always counted to the end.
         const bool bounded = p_below >= 0 && p_above >= 0;
         auto hopeless = [&](uint32_t l, uint32_t r) {
-            if (!bounded || l == 0 || r == 0) return false;
-            if (beats(cost_.split(cost_.step(kd, n), p_below, l, p_above, r), res.best.cost, false))
-                return false;
-            return !cost_.has_fallback(kd) ||
-                   !beats(cost_.split(cost_.fallback_step(), p_below, l, p_above, r),
-                          res.fallback.cost, false);
+            return bounded && l != 0 && r != 0 &&
+                   !may_win_weighted(res, kd, n, l, r, p_below, p_above, false, false);
         };
         PlaneCount pc;
         if (!count(u, is_ax, d, hopeless, pc)) return;
