@@ -34,7 +34,7 @@ core: venv
 # .venv-bpy42) generates a scene, runs Build & Render, saves the preview image
 # as out/blender_demo.png and prints the panel's statistics.
 demo: core
-	bash addon_tests/in_blender/demo_in_blender.sh $(abspath $(BIN)/python) -- --out out/blender_demo.png --compare-embree
+	bash blender_tests/demo_in_blender.sh $(abspath $(BIN)/python) -- --out out/blender_demo.png --compare-embree
 
 # The same job on the core alone, without Blender.
 demo-core: core
@@ -49,13 +49,16 @@ test: test-cpp test-core test-sanitize test-blender
 test-cpp:
 	bash core/cpp_tests/run.sh
 
-# The core suite and the add-on's bpy-free tests (addon_tests/without_blender:
-# its jobs, images and overlay arrays on the real core, without Blender), in
+# The core suite, then the add-on's bpy-free tests (addon/tests: its jobs,
+# images and overlay arrays on the real core, without Blender), in
 # pytest-xdist workers: 13.2 min in two on CI's 2 cores, 17.7 in one
-# process (2026-12-05).
+# process (2026-12-05). addon/tests is its own rootdir: under the repository's
+# root pytest would import addon/__init__.py (a package's set-up), which
+# needs bpy.
 test-core: core
 	bash core/tools/ensure_qemu_user.sh
-	$(BIN)/python -m pytest -q $(XDIST) core/tests addon_tests/without_blender
+	$(BIN)/python -m pytest -q $(XDIST) core/tests
+	$(BIN)/python -m pytest -q $(XDIST) --rootdir addon/tests addon/tests
 
 # The core built with AddressSanitizer + UndefinedBehaviorSanitizer in folders
 # of its own (core/build/asan, out/sanitize/asan; .venv's install is left
@@ -73,7 +76,7 @@ test-tsan: venv
 	BSPLAB_PYTHON=$(abspath $(BIN)/python) bash core/tools/sanitize.sh tsan
 
 test-blender: core
-	bash addon_tests/in_blender/run_all.sh $(abspath $(BIN)/python)
+	bash blender_tests/run_all.sh $(abspath $(BIN)/python)
 
 bench: core
 	$(BIN)/python -m bsplab bench --out docs/benchmark.md
@@ -95,7 +98,7 @@ results-quick: core
 # The extension zip for Blender 4.2 - 5.2: the core's wheels for CPython 3.11
 # and 3.13 (python313.sh finds this machine's 3.13 or makes a Debian 13 root).
 addon: core
-	$(BIN)/python addon_tools/build_extension.py --python313 "$$(bash addon_tests/in_blender/python313.sh)"
+	$(BIN)/python addon/tools/build_extension.py --python313 "$$(bash blender_tests/python313.sh)"
 
 scenes: core
 	$(BIN)/python -m bsplab scenes --out scenes

@@ -6,7 +6,7 @@ Nothing here touches bpy: the operator copies the scene into numpy arrays
 and plain values first (`JobInput`, scene_reader.py), the job computes on a
 worker thread (worker.py) and the main thread then reads `result` or
 `error`. That split is also what lets the tests run a job without Blender
-(addon_tests/without_blender/test_build_job.py).
+(addon/tests/test_build_job.py).
 """
 
 import time

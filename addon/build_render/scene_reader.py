@@ -41,7 +41,7 @@ def preview_size(render, preview_percentage):
 
     The panel draws it with or without bsplab, so it cannot wait for
     bsplab's copy (bsplab.blender.scene_camera.preview_size, which
-    addon_tests/in_blender/test_camera.py checks this one against)."""
+    blender_tests/test_camera.py checks this one against)."""
     scale = render.resolution_percentage / 100.0 * preview_percentage / 100.0
     width = max(1, int(round(render.resolution_x * scale)))
     height = max(1, int(round(render.resolution_y * scale)))

@@ -24,7 +24,7 @@ clears the cache when a file is loaded and when it is unregistered, so a
 tree of another file is never shown.
 
 No bpy here: the worker thread fills the cache, the main thread clears it,
-and addon_tests/without_blender/test_build_job.py tests it without Blender.
+and addon/tests/test_build_job.py tests it without Blender.
 """
 
 import hashlib

@@ -16,7 +16,7 @@ with the camera, mode and culling of the first (A). Its preview is one of
   bar's caption says how many.
 
 Pure numpy, no bpy: the job's worker thread hands the images and per-pixel
-counters here, and addon_tests/without_blender/test_compare_job.py tests
+counters here, and addon/tests/test_compare_job.py tests
 the composition without Blender.
 """
 

@@ -6,7 +6,7 @@
 # A CMake project of its own in core/build/cpp-tests (incremental): the core's
 # library bsplab_core, built in Debug (-O1 -g, asserts on, no Python), and
 # the executable bsplab_cpp_tests linking it. Installs Debian's libgtest-dev
-# with apt-get when its headers are missing (as addon_tests/in_blender/run_all.sh does
+# with apt-get when its headers are missing (as blender_tests/run_all.sh does
 # with Blender). docs/testing.md.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

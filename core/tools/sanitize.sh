@@ -109,8 +109,11 @@ if [ "$kind" = asan ]; then
   # --capture=sys: pytest captures Python's output but leaves file
   # descriptor 2 alone, so UBSan's report (which ignores log_path in GCC's
   # combined runtimes) reaches the log even when it aborts the process.
+  # addon/tests is its own rootdir (the Makefile's test-core says why).
   LD_PRELOAD="$preload" "$PYTHON" -m pytest -q -p no:cacheprovider --capture=sys \
-    -m "not slow" core/tests addon_tests/without_blender "$@" || status=$?
+    -m "not slow" core/tests "$@" || status=$?
+  LD_PRELOAD="$preload" "$PYTHON" -m pytest -q -p no:cacheprovider --capture=sys \
+    -m "not slow" --rootdir addon/tests addon/tests "$@" || status=$?
 else
   # report_signal_unsafe=0: CPython's signal handlers are not the core's.
   # exitcode=0: the filter below decides what counts.

@@ -16,7 +16,7 @@ DEPS="$REPO/build/blender-deps"
 DEPS313="$REPO/build/blender-deps-313"
 WHEELS="$REPO/build/wheels"
 # The Debian 13 root that gives a Python 3.13 where the machine has none
-# (addon_tests/in_blender/in_debian13.sh); outside the clone, so that CI's fresh clones
+# (blender_tests/in_debian13.sh); outside the clone, so that CI's fresh clones
 # on one machine share it.
 export BSPLAB_DEBIAN13_ROOT="${BSPLAB_DEBIAN13_ROOT:-/var/cache/bsplab/debian13}"
 # What bpy 5.1+ loads at import (libGL, X11, Wayland client), and Mesa's EGL
@@ -81,7 +81,7 @@ find_python313() {
         done
     fi
     ensure_debian13_root || return 1
-    RUN313="$REPO/addon_tests/in_blender/in_debian13.sh"
+    RUN313="$REPO/blender_tests/in_debian13.sh"
     PY313="$DEBIAN13_PYTHON"
     echo "Python 3.13: $PY313 in the Debian 13 root $BSPLAB_DEBIAN13_ROOT"
 }
@@ -135,8 +135,8 @@ ensure_debian13_root() {
 
 make_debian13_venv() {
     rm -rf "$BSPLAB_DEBIAN13_ROOT${DEBIAN13_PYTHON%/bin/python}"
-    "$REPO/addon_tests/in_blender/in_debian13.sh" /usr/bin/python3.13 -m venv "${DEBIAN13_PYTHON%/bin/python}" &&
-        "$REPO/addon_tests/in_blender/in_debian13.sh" "$DEBIAN13_PYTHON" -c 'import ssl, pip'
+    "$REPO/blender_tests/in_debian13.sh" /usr/bin/python3.13 -m venv "${DEBIAN13_PYTHON%/bin/python}" &&
+        "$REPO/blender_tests/in_debian13.sh" "$DEBIAN13_PYTHON" -c 'import ssl, pip'
 }
 
 start_wheels() {  # needs find_python313 first: build_extension's wheels, in the background
@@ -147,7 +147,7 @@ start_wheels() {  # needs find_python313 first: build_extension's wheels, in the
     # end the compile with it; wait_wheels prints its output.
     WHEELS_LOG="$(mktemp)"
     log "building the wheels in the background (log shown when done)"
-    setsid "$PY" "$REPO/addon_tools/build_extension.py" --wheel-dir "$WHEELS" --wheels-only \
+    setsid "$PY" "$REPO/addon/tools/build_extension.py" --wheel-dir "$WHEELS" --wheels-only \
         --python313 "${RUN313:+$RUN313 }$PY313" >"$WHEELS_LOG" 2>&1 &
     WHEELS_PID=$!
 }
@@ -173,7 +173,7 @@ stop_wheels() {  # on an early exit: end the background build, pip and the compi
 
 build_extension() {  # needs find_python313 first
     log "building the wheels and the extension zip"
-    ZIP="$("$PY" "$REPO/addon_tools/build_extension.py" --wheel-dir "$WHEELS" \
+    ZIP="$("$PY" "$REPO/addon/tools/build_extension.py" --wheel-dir "$WHEELS" \
         --python313 "${RUN313:+$RUN313 }$PY313" | tail -n 1)" || return 1
     [ -f "$ZIP" ]
 }
@@ -199,7 +199,7 @@ run_script_on_bpy42() {  # SCRIPT [ARGS...]: the demo's and time_button's set-up
     check_python
     ensure_bpy_venv "$REPO/.venv-bpy42" 4.2.23 || die "could not set up bpy 4.2.23"
     find_python313 || die "no Python 3.13 for the extension's 3.13 wheels"
-    build_extension || die "addon_tools/build_extension.py failed"
+    build_extension || die "addon/tools/build_extension.py failed"
     install_deps || die "could not install the wheels into $DEPS"
     local script=$1
     shift

@@ -1,13 +1,13 @@
 #!/usr/bin/env python3
 """Build the installable BSP Lab extension zip into dist/.
 
-    python addon_tools/build_extension.py --python313 PYTHON3.13 [--out-dir dist]
+    python addon/tools/build_extension.py --python313 PYTHON3.13 [--out-dir dist]
 
 Blender 4.2 - 5.0 embed CPython 3.11 and Blender 5.1 - 5.2 CPython 3.13, so
 the zip carries the core and `embreex` for both (PYTHON_TARGETS below):
 1. the `bsplab` wheels, built from core/ with `pip wheel ./core`: cp311 with
    this Python (or --python), and the stable-ABI cp312-abi3 wheel (any
-   CPython >= 3.12) with --python313 (a command: addon_tests/in_blender/python313.sh
+   CPython >= 3.12) with --python313 (a command: blender_tests/python313.sh
    finds or makes one);
 2. `embreex`'s manylinux wheels for CPython 3.11 and 3.13, from
    `pip download`;
@@ -41,9 +41,10 @@ import subprocess
 import sys
 import zipfile
 
-REPO = pathlib.Path(__file__).resolve().parent.parent
-# The shipped folder: all of it goes into the zips but SOURCE_EXCLUDE and
-# compiled files (the tools that are not shipped live in addon_tools/).
+REPO = pathlib.Path(__file__).resolve().parents[2]
+# The shipped folder: all of it goes into the zips but SOURCE_EXCLUDE,
+# compiled files and NOT_SHIPPED (its bpy-free tests and these tools, kept
+# beside the add-on they test and build).
 ADDON = REPO / "addon"
 BUILD = REPO / "build" / "extension"
 
@@ -70,6 +71,8 @@ BLENDER_EXT_GLOB = "bpy/*/scripts/addons_core/bl_pkg/cli/blender_ext.py"
 # The bpy wheel to take blender_ext.py from when no bpy is installed anywhere.
 FALLBACK_BPY = "bpy==4.2.23"
 SOURCE_EXCLUDE = {"__pycache__", "wheels"}
+# Top-level folders of addon/ that stay out of both zips.
+NOT_SHIPPED = {"tests", "tools"}
 
 
 def log(message):
@@ -220,8 +223,9 @@ def stage(wheels):
     source = BUILD / "source"
     if source.exists():
         shutil.rmtree(source)
-    shutil.copytree(ADDON, source, ignore=lambda _d, names: [
-        n for n in names if n in SOURCE_EXCLUDE or n.endswith((".pyc", ".zip"))])
+    shutil.copytree(ADDON, source, ignore=lambda folder, names: [
+        n for n in names if n in SOURCE_EXCLUDE or n.endswith((".pyc", ".zip"))
+        or (pathlib.Path(folder) == ADDON and n in NOT_SHIPPED)])
     (source / "wheels").mkdir()
     for wheel in wheels:
         shutil.copy2(wheel, source / "wheels" / wheel.name)
@@ -263,7 +267,7 @@ def build_legacy_zip(out_dir):
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
         for source in sorted(ADDON.rglob("*.py")):
             relative = source.relative_to(ADDON)
-            if not SOURCE_EXCLUDE.intersection(relative.parts):
+            if not SOURCE_EXCLUDE.intersection(relative.parts) and relative.parts[0] not in NOT_SHIPPED:
                 archive.write(source, "bsplab_addon/" + relative.as_posix())
     log("built " + str(path))
     return path
@@ -281,7 +285,7 @@ def main(argv=None):
                         help="the Python 3.11 that runs pip (default: this one)")
     parser.add_argument("--python313", default=os.environ.get("BSPLAB_PYTHON313"),
                         help="command of a CPython 3.13 that builds the stable-ABI core wheel "
-                             "(default: $BSPLAB_PYTHON313; addon_tests/in_blender/python313.sh "
+                             "(default: $BSPLAB_PYTHON313; blender_tests/python313.sh "
                              "prints one)")
     parser.add_argument("--wheels-only", action="store_true",
                         help="build/download the wheels into --wheel-dir and stop (run_all.sh "
@@ -289,7 +293,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     args.wheel_dir.mkdir(parents=True, exist_ok=True)
-    # --python313 may be a command line ("addon_tests/in_blender/in_debian13.sh /usr/bin/python3.13").
+    # --python313 may be a command line ("blender_tests/in_debian13.sh /usr/bin/python3.13").
     builders = {"3.11": [args.python],
                 "3.13": shlex.split(args.python313) if args.python313 else None}
     wheels = []
@@ -299,7 +303,7 @@ def main(argv=None):
             core_wheel = given[-1]
         elif builders[target.version] is None:
             sys.exit("build_extension: no Python {} to build the core for {}: pass --python313 "
-                     "(addon_tests/in_blender/python313.sh finds or makes one)".format(
+                     "(blender_tests/python313.sh finds or makes one)".format(
                          target.version, target.blenders))
         else:
             core_wheel = build_core_wheel(builders[target.version], args.wheel_dir, target)

@@ -1,7 +1,7 @@
 """Button-to-preview time in Blender: the add-on's Build & Render pressed on a
 shared mesh, timed from the press to the image block written.
 
-    addon_tests/in_blender/time_button.sh [-- --scene conference --preview 50 --presses 5 --cold]
+    blender_tests/time_button.sh [-- --scene conference --preview 50 --presses 5 --cold]
 
 Blender's own PLY importer reads /work/shared/scenes/<scene>.ply (or
 $BSPLAB_SHARED_SCENES), a camera frames it as the lab's primary rays do
@@ -15,7 +15,7 @@ every press's wall time and the panel's build/fingerprint/render times, then
 the first press and the median of the others. Runs on the bpy module
 (time_button.sh sets it up like the demo) or a Blender binary:
     BSPLAB_PYTHONPATH=build/blender-deps blender -b --factory-startup \\
-        --python addon_tests/in_blender/time_button.py -- --scene conference
+        --python blender_tests/time_button.py -- --scene conference
 """
 
 import argparse
@@ -27,8 +27,8 @@ import time
 
 import bpy
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "addon_tools"))
+REPO = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "addon/tools"))
 import demo_headless  # noqa: E402  (the add-on loader)
 
 

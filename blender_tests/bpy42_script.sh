@@ -10,7 +10,7 @@
 # blender_env.sh (run_script_on_bpy42 and the set-up it calls).
 # shellcheck shell=bash
 
-REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$REPO" || return 1
 
 PY="${PYTHON:-$REPO/.venv/bin/python}"
@@ -18,5 +18,5 @@ if [ $# -gt 0 ] && [ "$1" != "--" ]; then PY="$1"; shift; fi
 [ "${1:-}" = "--" ] && shift
 SCRIPT_ARGS=("$@")
 
-# shellcheck source=addon_tests/in_blender/blender_env.sh
-. "$REPO/addon_tests/in_blender/blender_env.sh"
+# shellcheck source=blender_tests/blender_env.sh
+. "$REPO/blender_tests/blender_env.sh"

@@ -1,7 +1,7 @@
 """Drive the modal Build & Render in a real Blender window (manual check).
 
     xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \\
-        --python addon_tests/in_blender/gui_check.py -- OUT_DIR
+        --python blender_tests/gui_check.py -- OUT_DIR
 
 Needs a display (Xvfb is fine), xdotool (to press Esc) and optionally
 ImageMagick's `import` for screenshots. run_all.sh runs it when

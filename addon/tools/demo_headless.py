@@ -1,7 +1,7 @@
 """BSP Lab demo: Build & Render through the add-on, headless.
 
-    blender -b --factory-startup --python addon_tools/demo_headless.py -- --out out.png
-    python addon_tools/demo_headless.py --out out.png        (with the `bpy` module)
+    blender -b --factory-startup --python addon/tools/demo_headless.py -- --out out.png
+    python addon/tools/demo_headless.py --out out.png        (with the `bpy` module)
 
 Opens --blend FILE, or generates a default scene (meshes with a Subdivision
 modifier, an instanced collection, a camera); registers the add-on from
@@ -25,7 +25,7 @@ import bpy  # first: the bpy module makes bmesh importable
 import bmesh  # noqa: E402
 
 # The shipped add-on folder, beside this tool's folder.
-ADDON_DIR = pathlib.Path(__file__).resolve().parents[1] / "addon"
+ADDON_DIR = pathlib.Path(__file__).resolve().parents[2] / "addon"
 ADDON_MODULE = "bsplab_addon"  # not "bsplab": that is the core's name
 
 

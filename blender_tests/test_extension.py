@@ -1,6 +1,6 @@
 """The extension zip: valid for Blender's own tool, installs headless, works.
 
-The zip comes from addon_tools/build_extension.py (run_all.sh builds it first);
+The zip comes from addon/tools/build_extension.py (run_all.sh builds it first);
 BSPLAB_EXTENSION_ZIP may name another one.
 """
 
@@ -31,7 +31,7 @@ def extension_zip():
         zips = sorted((utils.REPO / "dist").glob("bsplab-*.zip"), key=os.path.getmtime)
         path = str(zips[-1]) if zips else None
     require(path is not None and os.path.exists(path),
-            "no extension zip: run addon_tools/build_extension.py first")
+            "no extension zip: run addon/tools/build_extension.py first")
     sources = [p for p in utils.ADDON_DIR.glob("*") if p.suffix in (".py", ".toml")]
     newest = max(p.stat().st_mtime for p in sources)
     require(os.path.getmtime(path) >= newest,
@@ -41,7 +41,7 @@ def extension_zip():
 
 def legacy_zip():
     zips = sorted((utils.REPO / "dist").glob("bsplab_addon-*-legacy.zip"), key=os.path.getmtime)
-    require(bool(zips), "no legacy add-on zip: run addon_tools/build_extension.py first")
+    require(bool(zips), "no legacy add-on zip: run addon/tools/build_extension.py first")
     return str(zips[-1])
 
 
@@ -72,12 +72,13 @@ def test_zip_contents():
     with zipfile.ZipFile(extension_zip()) as archive:
         names = archive.namelist()
         manifest = tomllib.loads(archive.read("blender_manifest.toml").decode())
-    # Every module of the shipped folder, in its subpackage, and no tool.
-    shipped = {path.relative_to(utils.ADDON_DIR).as_posix() for path in utils.ADDON_DIR.rglob("*.py")}
+    # Every module of the shipped folder, in its subpackage, and no tool or test.
+    shipped = utils.shipped_modules()
     assert {"__init__.py", "state.py", "build_render/operator.py"} <= shipped
     assert shipped <= set(names), sorted(shipped - set(names))
     assert not [name for name in names if "__pycache__" in name or name.endswith(".pyc")]
     assert not [name for name in names if name.endswith(("build_extension.py", "demo_headless.py"))]
+    assert not [name for name in names if name.split("/")[0] in utils.NOT_SHIPPED]
     wheels = manifest["wheels"]
     for wheel in wheels:
         assert wheel.lstrip("./") in names
@@ -94,8 +95,7 @@ def test_legacy_zip_contents():
     """The legacy add-on: the same modules, with their subpackages, under bsplab_addon/."""
     with zipfile.ZipFile(legacy_zip()) as archive:
         names = set(archive.namelist())
-    shipped = {"bsplab_addon/" + path.relative_to(utils.ADDON_DIR).as_posix()
-               for path in utils.ADDON_DIR.rglob("*.py")}
+    shipped = {"bsplab_addon/" + name for name in utils.shipped_modules()}
     assert names == shipped, sorted(names ^ shipped)
 
 

@@ -2,7 +2,7 @@
 BSPLAB_GUI_CHECK=1; needs Xvfb, xdotool and ImageMagick's `import`).
 
     xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \\
-        --python addon_tests/in_blender/gui_check_inspector.py -- OUT_DIR
+        --python blender_tests/gui_check_inspector.py -- OUT_DIR
 
 Builds the test scene with Build & Render, starts the panel's eyedropper
 (bsplab.inspect_pick, modal) and clicks - a real xdotool click - a preview

@@ -1,7 +1,7 @@
 """The tree overlay drawn in a real 3D Viewport (Xvfb, software GL).
 
     xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \\
-        --python addon_tests/in_blender/gui_check_overlay.py -- OUT_DIR [DOCS_IMAGE]
+        --python blender_tests/gui_check_overlay.py -- OUT_DIR [DOCS_IMAGE]
 
 Needs ImageMagick's `import` (the screenshots are read back as PPM: no PIL
 in Blender's Python). run_all.sh runs it when BSPLAB_GUI_CHECK=1. Exits 0

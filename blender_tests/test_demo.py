@@ -1,4 +1,4 @@
-"""addon_tools/demo_headless.py, the README's Blender demo, in a fresh process."""
+"""addon/tools/demo_headless.py, the README's Blender demo, in a fresh process."""
 
 import os
 import subprocess
@@ -9,7 +9,7 @@ import bpy
 import bsplab_test_utils as utils
 from conftest import in_bpy_module
 
-DEMO = str(utils.REPO / "addon_tools" / "demo_headless.py")
+DEMO = str(utils.REPO / "addon/tools" / "demo_headless.py")
 
 
 def run_demo(*args):

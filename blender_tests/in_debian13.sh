@@ -2,7 +2,7 @@
 # Run a command inside the Debian 13 root (Python 3.13) that blender_env.sh's
 # ensure_debian13_root makes where the machine has no Python 3.13 of its own.
 #
-#   addon_tests/in_blender/in_debian13.sh COMMAND [ARGS...]
+#   blender_tests/in_debian13.sh COMMAND [ARGS...]
 #
 # The root is $BSPLAB_DEBIAN13_ROOT (default /var/cache/bsplab/debian13). The
 # repository, /tmp, /proc, /sys and /dev are bound into it at the same paths,
@@ -13,7 +13,7 @@
 set -euo pipefail
 
 ROOT="${BSPLAB_DEBIAN13_ROOT:-/var/cache/bsplab/debian13}"
-REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 [ -x "$ROOT/usr/bin/python3.13" ] || { echo "in_debian13.sh: no Debian 13 root at $ROOT" >&2; exit 1; }
 
 # pip inside trusts what the host trusts (a proxy's own CA, say): the host's

@@ -2,7 +2,7 @@
 level 3 (61,952 triangles) in a grid of collection instances, camera above,
 Build & Render at 50 % of 1920 x 1080, Instances: Two-level (or Flatten).
 
-    addon_tests/in_blender/time_instances.sh [-- --side 10 --instances two_level]
+    blender_tests/time_instances.sh [-- --side 10 --instances two_level]
 
 Prints the first press (every tree built), a press after moving one
 instance (the top level rebuilt), a press after only the shading changed

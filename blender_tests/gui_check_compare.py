@@ -1,7 +1,7 @@
 """The A/B comparison in a real Blender window (Xvfb).
 
     xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \\
-        --python addon_tests/in_blender/gui_check_compare.py -- OUT_DIR [DOCS_DIR]
+        --python blender_tests/gui_check_compare.py -- OUT_DIR [DOCS_DIR]
 
 Presses Build & Render through INVOKE_DEFAULT (the modal path: worker
 thread, timer) with "Compare with B" on, twice: once with the split view

@@ -1,7 +1,7 @@
 """Run the add-on's pytest suite inside a Blender binary.
 
     blender --background --factory-startup -noaudio --python-exit-code 1 \\
-        --python addon_tests/in_blender/run_in_blender.py [-- PYTEST_ARGS...]
+        --python blender_tests/run_in_blender.py [-- PYTEST_ARGS...]
 
 Blender's Python ignores PYTHONPATH, so the directories that hold the
 `bsplab` core (and `embreex`) are passed in BSPLAB_PYTHONPATH (os.pathsep

@@ -1,6 +1,6 @@
 """Click-to-panel time of the ray inspector on a shared scene.
 
-    addon_tests/in_blender/time_button.sh is the set-up this borrows: Blender's PLY
+    blender_tests/time_button.sh is the set-up this borrows: Blender's PLY
     importer reads /work/shared/scenes/<scene>.ply (or $BSPLAB_SHARED_SCENES),
     a camera frames it (bsplab.workloads.framing_camera), 1920 x 1080 at
     --preview percent. One Build & Render, then --picks preview pixels on a
@@ -11,9 +11,9 @@
     and the shares of trace_path and of the drawing arrays.
 
     PYTHONPATH=build/blender-deps .venv-bpy42/bin/python \\
-        addon_tests/in_blender/time_inspector.py -- --scene conference
+        blender_tests/time_inspector.py -- --scene conference
     BSPLAB_PYTHONPATH=build/blender-deps blender -b --factory-startup \\
-        --python addon_tests/in_blender/time_inspector.py -- --scene conference
+        --python blender_tests/time_inspector.py -- --scene conference
 
 Exits 0 with a note (not a failure) when the shared scenes are missing.
 """

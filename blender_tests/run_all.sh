@@ -7,7 +7,7 @@
 #      root's, blender_env.sh's find_python313)
 #   5. Debian's Blender 3.4.1 binary (pytest inside Blender; the legacy add-on)
 #
-#   addon_tests/in_blender/run_all.sh [PROJECT_PYTHON]
+#   blender_tests/run_all.sh [PROJECT_PYTHON]
 #
 # PROJECT_PYTHON (default: $PYTHON, else .venv/bin/python) is a Python 3.11
 # that can build core/ (scikit-build-core, nanobind). The script
@@ -16,7 +16,7 @@
 #   pytest;
 # - builds the bsplab wheels (cp311, and cp312-abi3 with the Python 3.13: a
 #   whole compile of the core) in the background while the venvs download,
-#   then the extension zip (addon_tools/build_extension.py, which also
+#   then the extension zip (addon/tools/build_extension.py, which also
 #   validates the zip with each bpy's copy of Blender's own tool);
 # - installs the bsplab and embreex wheels into build/blender-deps/ (3.11)
 #   and build/blender-deps-313/, put on the path of each run (PYTHONPATH, or
@@ -30,12 +30,12 @@
 
 set -u -o pipefail
 
-REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$REPO"
 
 PY="${1:-${PYTHON:-$REPO/.venv/bin/python}}"
-# shellcheck source=addon_tests/in_blender/blender_env.sh
-. "$REPO/addon_tests/in_blender/blender_env.sh"
+# shellcheck source=blender_tests/blender_env.sh
+. "$REPO/blender_tests/blender_env.sh"
 check_python
 
 declare -a TIMES=()
@@ -57,9 +57,9 @@ ensure_bpy_venv "$REPO/.venv-bpy45" 4.5.15 || die "could not set up bpy 4.5.15"
 ensure_bpy_venv "$REPO/.venv-bpy50" 5.0.1 || die "could not set up bpy 5.0.1"
 ensure_bpy_venv "$REPO/.venv-bpy52" 5.2.3 "$PY313" "$RUN313" || die "could not set up bpy 5.2.3"
 lap "set-up: bpy venvs (reused when present), wheels started"
-wait_wheels || die "building the wheels failed (addon_tools/build_extension.py --wheels-only)"
+wait_wheels || die "building the wheels failed (addon/tools/build_extension.py --wheels-only)"
 lap "set-up: the rest of the wheels' build"
-build_extension || die "addon_tools/build_extension.py failed"
+build_extension || die "addon/tools/build_extension.py failed"
 install_deps || die "could not install the wheels into $DEPS"
 install_deps313 "$REPO/.venv-bpy52" || die "could not install the wheels into $DEPS313"
 lap "set-up: zip, validation"
@@ -88,7 +88,7 @@ print("bpy %s (Python %d.%d)" % ((m.version("bpy"),) + sys.version_info[:2]))')"
     USER_DIR="$(mktemp -d)"
     # shellcheck disable=SC2086
     PYTHONPATH="$deps" BLENDER_USER_RESOURCES="$USER_DIR" \
-        $runner "$REPO/$venv/bin/python" -m pytest addon_tests/in_blender -p no:cacheprovider -ra 2>&1 \
+        $runner "$REPO/$venv/bin/python" -m pytest blender_tests -p no:cacheprovider -ra 2>&1 \
         | tee "$LOGS/${venv#.}.log"
     record "$name" "${PIPESTATUS[0]}"
     rm -rf "$USER_DIR"
@@ -116,7 +116,7 @@ log "pytest inside $BLENDER_VERSION"
 USER_DIR="$(mktemp -d)"
 BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$USER_DIR" \
     blender --background --factory-startup -noaudio --python-exit-code 1 \
-    --python addon_tests/in_blender/run_in_blender.py 2>&1 | tee "$LOGS/blender.log"
+    --python blender_tests/run_in_blender.py 2>&1 | tee "$LOGS/blender.log"
 record "$BLENDER_VERSION" "${PIPESTATUS[0]}"
 rm -rf "$USER_DIR"
 lap "suite: $BLENDER_VERSION (with its apt install)"
@@ -133,13 +133,13 @@ if [ "${BSPLAB_GUI_CHECK:-0}" = 1 ]; then
     rm -rf "$GUI_OUT"
     BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
         xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \
-        --python addon_tests/in_blender/gui_check.py -- "$GUI_OUT" > "$LOGS/gui.txt" 2>&1
+        --python blender_tests/gui_check.py -- "$GUI_OUT" > "$LOGS/gui.txt" 2>&1
     rc=$?
     cat "$GUI_OUT/gui_check.json" 2>/dev/null || tail -n 30 "$LOGS/gui.txt"
     record "GUI check ($BLENDER_VERSION, Xvfb)" "$rc"
-    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python addon_tests/in_blender/gui_check_compare.py -- "$GUI_OUT" > "$LOGS/gui_compare.txt" 2>&1; rc=$?; cat "$GUI_OUT/gui_check_compare.json" 2>/dev/null || tail -n 30 "$LOGS/gui_compare.txt"; record "GUI check A/B ($BLENDER_VERSION, Xvfb)" "$rc"
-    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python addon_tests/in_blender/gui_check_inspector.py -- "$GUI_OUT" > "$LOGS/gui_inspector.txt" 2>&1; record "GUI check, ray inspector (see $GUI_OUT/gui_check_inspector.json)" $?
-    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python addon_tests/in_blender/gui_check_overlay.py -- "$GUI_OUT/overlay" > "$LOGS/gui_overlay.txt" 2>&1; record "GUI overlay check ($BLENDER_VERSION, Xvfb)" "$?"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_compare.py -- "$GUI_OUT" > "$LOGS/gui_compare.txt" 2>&1; rc=$?; cat "$GUI_OUT/gui_check_compare.json" 2>/dev/null || tail -n 30 "$LOGS/gui_compare.txt"; record "GUI check A/B ($BLENDER_VERSION, Xvfb)" "$rc"
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_inspector.py -- "$GUI_OUT" > "$LOGS/gui_inspector.txt" 2>&1; record "GUI check, ray inspector (see $GUI_OUT/gui_check_inspector.json)" $?
+    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_overlay.py -- "$GUI_OUT/overlay" > "$LOGS/gui_overlay.txt" 2>&1; record "GUI overlay check ($BLENDER_VERSION, Xvfb)" "$?"
 fi
 
 log "summary"
@@ -150,5 +150,5 @@ printf '  %s\n' "${TIMES[@]}"
 # STATUS is what decides).
 FAILED=$(( $(count failed) + $(count error) ))
 [ "$STATUS" -eq 0 ] || [ "$FAILED" -gt 0 ] || FAILED=1
-echo "addon_tests/in_blender: $(count passed) passed, $FAILED failed, $(count skipped) skipped"
+echo "blender_tests: $(count passed) passed, $FAILED failed, $(count skipped) skipped"
 exit "$STATUS"

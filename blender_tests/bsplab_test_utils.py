@@ -14,10 +14,19 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
+REPO = pathlib.Path(__file__).resolve().parents[1]
 ADDON_DIR = REPO / "addon"
+# addon/'s folders that stay out of the zips (addon/tools/build_extension.py's NOT_SHIPPED).
+NOT_SHIPPED = ("tests", "tools")
 # Not "bsplab": that is the core's module name.
 ADDON_MODULE = "bsplab_addon"
+
+
+def shipped_modules():
+    """The add-on's .py files that the zips carry, relative to addon/ ("state.py")."""
+    return {path.relative_to(ADDON_DIR).as_posix() for path in ADDON_DIR.rglob("*.py")
+            if path.relative_to(ADDON_DIR).parts[0] not in NOT_SHIPPED}
+
 
 # What build_test_scene() puts in view, in triangles.
 SUBDIV_CUBE_TRIANGLES = 6 * 4 ** 2 * 2  # 6 quads, Subdivision level 2, 2 tris per quad
