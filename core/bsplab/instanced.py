@@ -54,6 +54,10 @@ def _matrices(value, n: int | None) -> np.ndarray:
 class InstancedTree:
     """Instances of shared mesh trees under a top-level BVH."""
 
+    # The kind of structure, beside a flat Tree's "bsp" and "bvh": what the
+    # interfaces branch on (never on which attributes an object has).
+    structure = "two_level"
+
     def __init__(self, scene, meshes: list[Tree], mesh_index: np.ndarray, matrices: np.ndarray,
                  method: str, options: dict, top_options: dict):
         self._scene = scene
