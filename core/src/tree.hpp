@@ -246,8 +246,9 @@ struct Tree {
     // Structure::Bvh: the box nodes (root first, children in pairs); refs[]
     // holds the leaves' triangles, nodes and planes stay empty.
     std::vector<BvhNode> bvh_nodes;
-    // Structure::Bvh: the same tree collapsed into 4-wide nodes (root first),
-    // which the hits-only path traces (builders/bvh_collapse.hpp). Derived
+    // Structure::Bvh: the same tree collapsed into wide nodes of
+    // BvhWideNode::kWidth children (root first), which the hits-only path
+    // traces (builders/bvh_collapse.hpp). Derived
     // from bvh_nodes, so not part of the tree's hash (node_bytes).
     std::vector<BvhWideNode> bvh_wide;
     // The binary node of each wide lane (4 per wide node): the counters and

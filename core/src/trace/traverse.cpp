@@ -20,9 +20,10 @@ namespace {
 
 constexpr int kCounterArrays = 5;
 
-// The BVH's hits-only walk: the 4-wide one, or - with the environment
-// variable BSPLAB_BVH_WALK=binary, read once - the binary walk, for the
-// layout's benchmark (docs/performance.md, "The BVH"): the same hits.
+// The BVH's hits-only walk: the wide one (BvhWideNode::kWidth = 8
+// children), or - with the environment variable BSPLAB_BVH_WALK=binary,
+// read once - the binary walk, for the layout's benchmark
+// (docs/performance.md, "The BVH"): the same hits.
 TraceRange bvh_hits_kernel() {
     static const bool binary = [] {
         const char* env = std::getenv("BSPLAB_BVH_WALK");

@@ -24,9 +24,9 @@ struct KernelSet {
     // (kernels/packet.hpp), the same hits as single_ray[0][0].
     TraceRange packets;
     int packet_width;
-    // Trees of Structure::Bvh, [counting]: the 4-wide walk
-    // (kernels/bvh_wide_single_ray.hpp). Their packets trace one ray at a
-    // time through bvh_single_ray[0].
+    // Trees of Structure::Bvh, [counting]: the wide walk, BvhWideNode::kWidth
+    // = 8 children a node (kernels/bvh_wide_single_ray.hpp). Their packets
+    // trace one ray at a time through bvh_single_ray[0].
     TraceRange bvh_single_ray[2];
     // The binary walk (kernels/bvh_single_ray.hpp), hits only: the wide
     // walk's reference in the C++ tests and the layout benchmark's binary

@@ -36,7 +36,8 @@ struct TreeView {
     float mean_leaf_refs;
     // Structure::Bvh: the box nodes (null for kd and BSP trees).
     const BvhNode* bvh_nodes;
-    // Structure::Bvh: its 4-wide collapse (the hits-only kernel's nodes).
+    // Structure::Bvh: its collapse into wide nodes of BvhWideNode::kWidth
+    // children (the hits-only kernel's nodes).
     const BvhWideNode* bvh_wide;
     const BvhLeafTriangle* bvh_leaf_tris;  // Structure::Bvh: the triangles in refs[] order
     const uint32_t* bvh_wide_binary;  // Structure::Bvh: each wide lane's binary node
