@@ -251,7 +251,7 @@ struct Tree {
     // traces (builders/bvh_collapse.hpp). Derived
     // from bvh_nodes, so not part of the tree's hash (node_bytes).
     std::vector<BvhWideNode> bvh_wide;
-    // The binary node of each wide lane (4 per wide node): the counters and
+    // The binary node of each wide lane (BvhWideNode::kWidth per wide node): the counters and
     // trace_path report the walk in the binary tree's numbering.
     std::vector<uint32_t> bvh_wide_binary;
     // Structure::Bvh: the triangles in leaf order with their indices
