@@ -103,12 +103,24 @@ def flat_report(stats, build, seconds, rendered):
 BUILD_REPORTS = {"bsp": flat_report, "bvh": flat_report, "two_level": two_level_report}
 
 
+def _flat_nodes(build):
+    return build.get("nodes", "?")
+
+
+def _top_nodes(build):
+    return "{} top".format(build.get("top_nodes", "?"))
+
+
+# B's node count in the report, by its kind: a two-level build's top level.
+NODE_COUNTS = {"bsp": _flat_nodes, "bvh": _flat_nodes, "two_level": _top_nodes}
+
+
 def b_report(stats):
     """The A/B part of Build & Render's report ("" without B)."""
     if "b" not in stats:
         return ""
     build = stats["b"]["build"]
-    nodes = build["nodes"] if "nodes" in build else "{} top".format(build.get("top_nodes", "?"))
+    nodes = NODE_COUNTS[build["structure"]](build)
     return "; B: {} nodes, {}, rendered in {:.3f} s".format(
         nodes, "tree reused" if build.get("reused") else
         "built in {:.3f} s".format(build.get("build_seconds", 0.0)),

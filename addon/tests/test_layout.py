@@ -170,7 +170,8 @@ def _table_keys(module, table):
 EVERY_KIND = (("jobs.embree_check", "SIDES"), ("build_render.job", "BUILD_STATS"),
               ("build_render.statistics", "BUILD_ROWS"),
               ("build_render.statistics", "COMPARED_ROWS"),
-              ("build_render.operator", "BUILD_REPORTS"), ("inspector.operators", "INSPECTIONS"),
+              ("build_render.operator", "BUILD_REPORTS"), ("build_render.operator", "NODE_COUNTS"),
+              ("inspector.operators", "INSPECTIONS"),
               ("inspector.panel", "WALK_PANELS"), ("overlay.cache", "DRAWN"),
               ("overlay.panel", "PANEL_KINDS"))
 FLAT_KINDS = (("inspector.walk_arrays", "CROSSED"), ("inspector.walk_arrays", "INSTANCE_CROSSED"),
