@@ -41,10 +41,12 @@ import bpy  # noqa: F401  (what tells a reload from the first import, above)
 from . import state
 
 # The features, registered in this order and unregistered in reverse: the
-# drawing helpers first, Build & Render (the main panel, which the other
-# panels sit in) before the features that use its tree.
+# drawing helpers and the shared job machinery first, Build & Render (the
+# main panel, which the other panels sit in) before the features that use
+# its tree.
 FEATURES = tuple(importlib.import_module("{}.{}".format(__name__, name)) for name in (
     "drawing",
+    "jobs",
     "build_render",
     "compare",
     "k_sweep",

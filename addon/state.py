@@ -44,10 +44,10 @@ class AddonState:
 
     def __init__(self):
         self.registered = False
-        # The one job in flight (a build.worker.WorkerJob), if any; the
+        # The one job in flight (a jobs.worker.WorkerJob), if any; the
         # panels read its progress and the operators refuse a second.
         self.job = None
-        # The last Build & Render shown (a build.shown_build.ShownBuild), or None.
+        # The last Build & Render shown (a jobs.shown_build.ShownBuild), or None.
         self.shown_build = None
         # The last ray inspection (inspector.trace.inspect()), or None.
         self.inspection = None
@@ -69,24 +69,24 @@ class AddonState:
         self.after_load = []
 
     # The caches are made on first use: their classes live in the features
-    # (build_render/tree_cache.py, overlay/geometry.py), which import this module.
+    # (jobs/tree_cache.py, overlay/cache.py), which import this module.
 
     @functools.cached_property
     def tree_cache(self):
-        """Build & Render's kept tree A (a build.tree_cache.TreeCache)."""
-        from .build_render.tree_cache import TreeCache
+        """Build & Render's kept tree A (a jobs.tree_cache.TreeCache)."""
+        from .jobs.tree_cache import TreeCache
         return TreeCache()
 
     @functools.cached_property
     def tree_cache_b(self):
         """Tree B of the A/B comparison, kept the same way."""
-        from .build_render.tree_cache import TreeCache
+        from .jobs.tree_cache import TreeCache
         return TreeCache()
 
     @functools.cached_property
     def overlay_geometry(self):
-        """The overlay's arrays (an overlay.geometry.GeometryCache)."""
-        from .overlay.geometry import GeometryCache
+        """The overlay's arrays (an overlay.cache.GeometryCache)."""
+        from .overlay.cache import GeometryCache
         return GeometryCache()
 
     def kept_tree(self):

@@ -133,7 +133,7 @@ def preview_target(addon):
     width, height = build.render_size
     x, row = width // 2, height // 2 + 5
     y = build.image_size[1] - 1 - row
-    cam = addon.build_render.job.make_camera(__import__("bsplab"), build.camera)
+    cam = addon.jobs.scene_reader.make_camera(__import__("bsplab"), build.camera)
     origins, directions = cam.rays(width, height)
     hits = build.tree().intersect(origins, directions, cull=build.cull, counters=False)
     window, area = area_of('IMAGE_EDITOR')

@@ -218,7 +218,7 @@ def measure_conference():
     report["conference_build_seconds"] = round(time.perf_counter() - start, 2)
     report["conference_nodes"] = tree.stats["nodes"]
     cache = addon.state.STATE.tree_cache
-    key = addon.build_render.tree_cache.tree_key(triangles, "kd", {})
+    key = addon.jobs.tree_cache.tree_key(triangles, "kd", {})
     cache.tree(key)  # forget the small scene's tree
     cache.keep_tree(key, tree, cache.generation())
     scene = bpy.context.scene

@@ -88,7 +88,7 @@ def test_inspector_lists_and_draws_the_boxes_the_ray_entered(addon, core, test_s
     press(scene)
     build = addon.state.STATE.shown_build
     width, height = build.render_size
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     assert bpy.ops.bsplab.inspect_pixel(x=width // 2, y=image.size[1] - 1 - height // 2) == \
         {'FINISHED'}
     inspection = addon.state.STATE.inspection

@@ -7,7 +7,7 @@ import pytest
 
 
 def spec_of(addon, scene, preview=50):
-    return addon.build_render.scene_reader.scene_camera(scene, bpy.context.evaluated_depsgraph_get(), preview)
+    return addon.jobs.scene_reader.scene_camera(scene, bpy.context.evaluated_depsgraph_get(), preview)
 
 
 def test_camera_spec(addon, test_scene):
@@ -29,11 +29,11 @@ def test_preview_size_uses_both_percentages(addon, test_scene):
     scene = test_scene["scene"]
     scene.render.resolution_x, scene.render.resolution_y = 1920, 1080
     scene.render.resolution_percentage = 50
-    assert addon.build_render.scene_reader.preview_size(scene.render, 25) == (240, 135)
-    assert addon.build_render.scene_reader.preview_size(scene.render, 1) == (10, 5)
+    assert addon.jobs.scene_reader.preview_size(scene.render, 25) == (240, 135)
+    assert addon.jobs.scene_reader.preview_size(scene.render, 1) == (10, 5)
     scene.render.resolution_x, scene.render.resolution_y = 4, 4
     scene.render.resolution_percentage = 1
-    assert addon.build_render.scene_reader.preview_size(scene.render, 1) == (1, 1)
+    assert addon.jobs.scene_reader.preview_size(scene.render, 1) == (1, 1)
 
 
 def test_camera_scale_is_ignored(addon, test_scene):
@@ -47,13 +47,13 @@ def test_camera_scale_is_ignored(addon, test_scene):
 
 def test_no_camera(addon, test_scene):
     test_scene["scene"].camera = None
-    with pytest.raises(addon.build_render.scene_reader.CameraError, match="no active camera"):
+    with pytest.raises(addon.jobs.scene_reader.CameraError, match="no active camera"):
         spec_of(addon, test_scene["scene"])
 
 
 def test_orthographic_camera_is_refused(addon, test_scene):
     test_scene["camera"].data.type = 'ORTHO'
-    with pytest.raises(addon.build_render.scene_reader.CameraError, match="perspective"):
+    with pytest.raises(addon.jobs.scene_reader.CameraError, match="perspective"):
         spec_of(addon, test_scene["scene"])
 
 

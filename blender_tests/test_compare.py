@@ -29,7 +29,7 @@ def press():
 
 
 def preview_pixels(addon):
-    return utils.image_pixels_top_down(bpy.data.images[addon.build_render.preview.IMAGE_NAME]).copy()
+    return utils.image_pixels_top_down(bpy.data.images[addon.jobs.preview.IMAGE_NAME]).copy()
 
 
 def set_b(scene, method=B_METHOD, k=B_K, view="split"):
@@ -102,8 +102,8 @@ def test_difference_signs_match_the_per_pixel_counters(addon, core, test_scene):
     press()
     image = preview_pixels(addon)[:HEIGHT, :WIDTH]
     # The counters of both trees, traced here without the add-on's job.
-    inp = addon.build_render.scene_reader.read_scene(bpy.context, core)
-    cam = addon.build_render.job.make_camera(core, inp.camera)
+    inp = addon.build_render.scene_input.read_scene(bpy.context, core)
+    cam = addon.jobs.scene_reader.make_camera(core, inp.camera)
     origins, directions = cam.rays(WIDTH, HEIGHT)
     counts = []
     for method, options in ((inp.method, inp.options), (inp.b.method, inp.b.options)):
@@ -202,8 +202,8 @@ def test_a_heat_split_shares_one_scale(addon, core, test_scene):
     set_b(scene, view="split")
     press()
     image = preview_pixels(addon)
-    inp = addon.build_render.scene_reader.read_scene(bpy.context, core)
-    cam = addon.build_render.job.make_camera(core, inp.camera)
+    inp = addon.build_render.scene_input.read_scene(bpy.context, core)
+    cam = addon.jobs.scene_reader.make_camera(core, inp.camera)
     origins, directions = cam.rays(WIDTH, HEIGHT)
     steps = [core.build(inp.triangles, method=m, **o).intersect(
         origins, directions, counters=True)["steps"].reshape(HEIGHT, WIDTH)

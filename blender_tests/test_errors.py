@@ -13,7 +13,7 @@ import bsplab_test_utils as utils
 def with_previous_result(addon, scene):
     """A preview and statistics from an earlier run, which must survive."""
     rgba = np.full((6, 8, 4), 0.25, dtype=np.float32)
-    addon.build_render.preview.write_preview(rgba)
+    addon.jobs.preview.write_preview(rgba)
     scene.bsplab.stats_json = json.dumps({"scene": {"triangles": 1}})
 
 
@@ -145,5 +145,5 @@ def test_unexpected_failure_reading_the_scene(addon, core, test_scene, monkeypat
     def broken(_depsgraph):
         raise RuntimeError("mesh data went away")
 
-    monkeypatch.setattr(addon.build_render.scene_reader, "scene_triangles", broken)
+    monkeypatch.setattr(addon.jobs.scene_reader, "scene_triangles", broken)
     assert_fails_cleanly(addon, test_scene["scene"], "could not read the scene: RuntimeError")

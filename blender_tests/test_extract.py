@@ -8,7 +8,7 @@ import bsplab_test_utils as utils
 
 
 def extract(addon):
-    return addon.build_render.scene_reader.scene_triangles(bpy.context.evaluated_depsgraph_get())
+    return addon.jobs.scene_reader.scene_triangles(bpy.context.evaluated_depsgraph_get())
 
 
 def centroids(triangles):

@@ -107,7 +107,7 @@ def inspect_middle_pixel(addon):
     """The ray inspector on the middle of the preview, picked as
     test_inspector.py does it; the inspection."""
     width, height = addon.state.STATE.shown_build.render_size
-    image_height = bpy.data.images[addon.build_render.preview.IMAGE_NAME].size[1]
+    image_height = bpy.data.images[addon.jobs.preview.IMAGE_NAME].size[1]
     assert bpy.ops.bsplab.inspect_pixel(x=width // 2, y=image_height - 1 - height // 2) \
         == {'FINISHED'}
     return addon.state.STATE.inspection
@@ -146,7 +146,7 @@ def test_overlay_draws_a_two_level_build_and_the_instance_in_place(addon, core, 
     scene = instanced_scene["scene"]
     press(scene)
     overlay, state = addon.overlay.draw, addon.state.STATE
-    assert addon.build_render.tree_cache.is_two_level(state.shown_build.tree())
+    assert state.shown_build.tree().structure == "two_level"
     props = scene.bsplab_overlay
     props.show, props.max_depth = True, 3
     # The cursor far from every instance: the top level's boxes only.

@@ -25,7 +25,7 @@ def kept(addon):
 def preview_rays(addon, core):
     """The camera rays Build & Render traced, and its kept tree's hits of them."""
     build, tree = kept(addon)
-    cam = addon.build_render.job.make_camera(core, build.camera)
+    cam = addon.jobs.scene_reader.make_camera(core, build.camera)
     origins, directions = cam.rays(*build.render_size)
     hits = tree.intersect(origins, directions, cull=build.cull, counters=False)
     return origins, directions, hits
@@ -44,7 +44,7 @@ def fails_with(operator, text, **props):
 
 
 def image_size(addon):
-    return tuple(bpy.data.images[addon.build_render.preview.IMAGE_NAME].size)
+    return tuple(bpy.data.images[addon.jobs.preview.IMAGE_NAME].size)
 
 
 def assert_same_walk(inspection, path):
@@ -60,7 +60,7 @@ def test_a_pixel_ray_is_the_ray_the_preview_traced(addon, core, test_scene):
     build, _ = kept(addon)
     width, height = build.render_size
     origins, directions, _ = preview_rays(addon, core)
-    cam = addon.build_render.job.make_camera(core, build.camera)
+    cam = addon.jobs.scene_reader.make_camera(core, build.camera)
     for row in range(height):
         for x in range(width):
             o, d = addon.inspector.trace.pixel_ray(cam, width, height, x, row)
@@ -287,7 +287,7 @@ def test_moving_the_camera_keeps_the_previews_rays(addon, core, test_scene):
 
 def test_preview_image_replaced(addon, test_scene):
     press(test_scene["scene"])
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     image.scale(7, 5)
     fails_with(bpy.ops.bsplab.inspect_pixel, "no longer the last Build", x=1, y=1)
     bpy.data.images.remove(image)
@@ -325,7 +325,7 @@ def test_image_editor_point_to_pixel(addon, test_scene):
     """region_to_view gives the image's 0..1 coordinates: the pixel is their
     floor times the size; another image in the editor is refused."""
     press(test_scene["scene"])
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     width, height = image.size
     region = types.SimpleNamespace(view2d=types.SimpleNamespace(
         region_to_view=lambda x, y: (x / 1000.0, y / 1000.0)))
@@ -333,9 +333,9 @@ def test_image_editor_point_to_pixel(addon, test_scene):
     u, v = (10.5 / width, (height - 0.5) / height)
     assert addon.inspector.operators.image_editor_pixel(space, region, u * 1000, v * 1000) == (10, height - 1)
     other = bpy.data.images.new("Other", 4, 4)
-    with pytest.raises(addon.build_render.worker.UserError, match="does not show the 'BSP Lab Preview'"):
+    with pytest.raises(addon.jobs.worker.UserError, match="does not show the 'BSP Lab Preview'"):
         addon.inspector.operators.image_editor_pixel(types.SimpleNamespace(image=other), region, 1, 1)
-    with pytest.raises(addon.build_render.worker.UserError, match="does not show"):
+    with pytest.raises(addon.jobs.worker.UserError, match="does not show"):
         addon.inspector.operators.image_editor_pixel(types.SimpleNamespace(image=None), region, 1, 1)
 
 

@@ -20,7 +20,7 @@ SCATTER_POINTS = 4
 
 
 def extract(addon, flat=False):
-    reader = addon.build_render.scene_reader
+    reader = addon.jobs.scene_reader
     depsgraph = bpy.context.evaluated_depsgraph_get()
     return (reader.scene_triangles if flat else reader.scene_instances)(depsgraph)
 
@@ -137,7 +137,7 @@ def panel_row(addon, label):
 
 
 def preview_pixels(addon):
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     return utils.image_pixels_top_down(image).copy()
 
 
@@ -228,8 +228,8 @@ def test_two_level_renders_what_flatten_renders(addon, core, instanced_scene):
     scene.bsplab.instances = "flatten"
     flat = press(scene)
     flat_pixels = preview_pixels(addon)
-    assert two["build"]["instances_mode"] == "two_level"
-    assert flat["build"]["instances_mode"] == "flatten"
+    assert two["build"]["structure"] == "two_level"
+    assert flat["build"]["structure"] in ("bsp", "bvh")
     assert two["scene"]["triangles"] == flat["scene"]["triangles"] == flat["build"]["triangles"]
     assert two["render"]["hits"] > 0.3 * 80 * 60
     assert abs(two["render"]["hits"] - flat["render"]["hits"]) <= 3
@@ -433,6 +433,6 @@ def test_compare_b_in_two_levels(addon, core, instanced_scene):
     scene.bsplab_compare.enabled = True
     scene.bsplab_compare.method = "bvh"
     stats = press(scene)
-    assert stats["b"]["build"]["instances_mode"] == "two_level"
-    assert stats["b"]["build"]["structure"] == "bvh"
+    assert stats["b"]["build"]["structure"] == "two_level"
+    assert stats["b"]["build"]["mesh_structure"] == "bvh"
     assert abs(stats["b"]["render"]["hits"] - stats["render"]["hits"]) <= 3

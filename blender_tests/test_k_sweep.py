@@ -111,7 +111,7 @@ def test_cancel_stops_the_sweep(addon, core, test_scene):
     job.join(60)
     assert not job.is_alive()
     assert isinstance(job.error, core.Cancelled)
-    assert "cancelled" in addon.build_render.worker.error_message(core, job.error)
+    assert "cancelled" in addon.jobs.worker.error_message(core, job.error)
 
 
 def test_experiment_reads_a_blend_file(addon, core, test_scene, tmp_path, monkeypatch):

@@ -50,7 +50,7 @@ def test_button_renders_the_scene(addon, core, test_scene):
     scene = test_scene["scene"]
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
 
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     assert tuple(image.size) == (80, 60)  # 160 x 120 at 100 %, preview 50 %
     assert image.is_float
 
@@ -86,7 +86,7 @@ def test_render_modes(addon, core, test_scene, mode):
     scene.bsplab.preview_percentage = 25
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
     _, expected = core_render_of_scene(core, scene, 40, 30, mode)
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     pixels = utils.image_pixels_top_down(image)
     # The render at the top left; a heat map has its colour bar below it.
     assert np.allclose(pixels[:30, :40], expected, atol=1e-6)
@@ -105,7 +105,7 @@ def test_count_steps_off_renders_in_packets(addon, core, test_scene):
     scene.bsplab.count_steps = False
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
     _, expected = core_render_of_scene(core, scene, 80, 60)
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     assert np.allclose(utils.image_pixels_top_down(image), expected, atol=1e-6)
     render = scene.bsplab.stats["render"]
     assert render["packets"] is True
@@ -129,7 +129,7 @@ def test_compare_with_embree(addon, core, test_scene):
     settings.compare_with_embree = True
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
     embree = settings.stats["embree"]
-    clash = addon.build_render.job.foreign_embree_library()
+    clash = addon.jobs.embree_check.foreign_embree_library()
     if clash is not None:
         # Debian's Blender 3.4 links libembree3, which crashes embreex: the
         # add-on declines the comparison instead of crashing Blender.
@@ -166,7 +166,7 @@ def test_job_on_a_worker_thread(addon, core, test_scene):
     """What the modal operator does, driven by hand: read on the main
     thread, compute on a worker, apply on the main thread."""
     build = addon.build_render
-    inp = build.scene_reader.read_scene(bpy.context, core)
+    inp = build.scene_input.read_scene(bpy.context, core)
     job = build.job.Job(core, inp)
     job.start()
     job.join(60)
@@ -175,20 +175,20 @@ def test_job_on_a_worker_thread(addon, core, test_scene):
     assert job.fraction() == pytest.approx(1.0)
     build.operator.apply_result(test_scene["scene"], job.result)
     _, expected = core_render_of_scene(core, test_scene["scene"], 80, 60)
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     assert np.allclose(utils.image_pixels_top_down(image), expected, atol=1e-6)
     assert json.loads(test_scene["scene"].bsplab.stats_json)["scene"]["triangles"] > 0
 
 
 def test_job_cancelled_on_its_thread(addon, core, test_scene):
     build = addon.build_render
-    job = build.job.Job(core, build.scene_reader.read_scene(bpy.context, core))
+    job = build.job.Job(core, build.scene_input.read_scene(bpy.context, core))
     job.cancel()
     job.start()
     job.join(60)
     assert isinstance(job.error, core.Cancelled)
     assert job.result is None
-    assert "cancelled" in build.worker.error_message(core, job.error)
+    assert "cancelled" in addon.jobs.worker.error_message(core, job.error)
 
 
 def test_preview_frames_like_blenders_render(addon, core, test_scene, tmp_path):
@@ -209,7 +209,7 @@ def test_preview_frames_like_blenders_render(addon, core, test_scene, tmp_path):
     settings.preview_percentage = 100
     settings.render_mode = "depth"
     assert bpy.ops.bsplab.build_render() == {'FINISHED'}
-    ours = utils.image_pixels_top_down(bpy.data.images[addon.build_render.preview.IMAGE_NAME])
+    ours = utils.image_pixels_top_down(bpy.data.images[addon.jobs.preview.IMAGE_NAME])
     ours_mask = ours[..., 0] >= 0.09  # depth mode: hits are grey >= 0.1, background 0.05
 
     scene.render.engine = 'CYCLES'
@@ -244,7 +244,7 @@ def test_every_method_of_the_core(addon, core, test_scene):
         stats = scene.bsplab.stats
         assert stats["build"]["method"] == method
         _, expected = core_render_of_scene(core, scene, 32, 24)
-        image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+        image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
         assert np.allclose(utils.image_pixels_top_down(image), expected, atol=1e-6), method
 
 

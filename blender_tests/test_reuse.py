@@ -24,7 +24,7 @@ def panel_row(addon, label):
 
 
 def preview_pixels(addon):
-    return utils.image_pixels_top_down(bpy.data.images[addon.build_render.preview.IMAGE_NAME]).copy()
+    return utils.image_pixels_top_down(bpy.data.images[addon.jobs.preview.IMAGE_NAME]).copy()
 
 
 def test_second_press_reuses_the_tree_and_renders_the_new_shading(addon, core, test_scene):

@@ -49,7 +49,7 @@ def test_overlay_draws_the_top_boxes_and_the_instance_under_the_cursor(addon, co
     scene = instanced_scene["scene"]
     press(scene)
     build, tree = kept(addon)
-    assert addon.build_render.tree_cache.is_two_level(tree)
+    assert tree.structure == "two_level"
     props = scene.bsplab_overlay
     props.show, props.max_depth, props.cells = True, 3, True
     try:
@@ -94,7 +94,7 @@ def test_overlay_with_the_cursor_over_no_instance(addon, core, instanced_scene):
         assert arrays["instance"] is None and arrays["polygons"] == 0
         assert arrays["top_boxes"] > 0
         texts = labels(addon.overlay.panel.BSPLAB_PT_overlay)
-        assert addon.overlay.two_level.NO_INSTANCE_NOTE in texts
+        assert addon.overlay.in_place.NO_INSTANCE_NOTE in texts
         assert not any(t.startswith("In place:") for t in texts)
     finally:
         props.show = False
@@ -108,7 +108,7 @@ def test_the_flat_overlay_is_unchanged_after_a_two_level_one(addon, core, instan
     props.show, props.max_depth = True, 4
     try:
         tree = addon.overlay.draw.kept_tree()
-        assert not addon.build_render.tree_cache.is_two_level(tree)
+        assert tree.structure != "two_level"
         arrays = addon.overlay.draw.current_geometry(scene)
         assert "two_level" not in arrays
         assert arrays["polygons"] == len(tree.split_polygons(4)["node"])
@@ -167,8 +167,8 @@ def test_a_preview_pixel_of_a_two_level_build(addon, core, instanced_scene):
     press(scene)
     build, tree = kept(addon)
     width, height = build.render_size
-    image_h = bpy.data.images[addon.build_render.preview.IMAGE_NAME].size[1]
-    cam = addon.build_render.job.make_camera(core, build.camera)
+    image_h = bpy.data.images[addon.jobs.preview.IMAGE_NAME].size[1]
+    cam = addon.jobs.scene_reader.make_camera(core, build.camera)
     origins, directions = cam.rays(width, height)
     hits = tree.intersect(origins, directions, counters=False)
     for x, row in ((width // 2, height // 2), (width // 4, height - 3), (3, 1)):

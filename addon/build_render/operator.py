@@ -11,12 +11,13 @@ import bpy
 from .. import backend
 from ..compare import images as compare_images
 from ..drawing import legend
+from ..jobs import preview, shown_build
+from ..jobs.job_operator import JobOperator
+from ..jobs.messages import check_result
+from ..jobs.worker import UserError
 from ..state import STATE
-from . import preview, shown_build
-from .job import Job, check_result
-from .job_operator import JobOperator
-from .scene_reader import read_scene
-from .worker import UserError
+from .job import Job
+from .scene_input import read_scene
 
 
 def preview_image(result):
@@ -76,20 +77,42 @@ def build_report(stats):
     build = stats["build"]
     seconds = build.get("build_seconds") or 0.0
     rendered = ", rendered in {:.3f} s".format(stats["render"].get("seconds", 0.0))
-    if build.get("instances_mode") == "two_level":
-        if build.get("reused"):
-            built = "reused (built in {:.3f} s by an earlier press)".format(seconds)
-        else:
-            built = "built in {:.3f} s: {} mesh trees built, {} reused".format(
-                seconds, build.get("mesh_trees_built", "?"), build.get("mesh_trees_reused", "?"))
-        return ("BSP Lab: two-level, {} instances of {} meshes ({} triangles flattened), "
-                "top level {} nodes, {}{}").format(
-                    build.get("instances", "?"), build.get("meshes", "?"),
-                    stats["scene"]["triangles"], build.get("top_nodes", "?"), built, rendered)
+    return BUILD_REPORTS[build["structure"]](stats, build, seconds, rendered)
+
+
+def two_level_report(stats, build, seconds, rendered):
+    if build.get("reused"):
+        built = "reused (built in {:.3f} s by an earlier press)".format(seconds)
+    else:
+        built = "built in {:.3f} s: {} mesh trees built, {} reused".format(
+            seconds, build.get("mesh_trees_built", "?"), build.get("mesh_trees_reused", "?"))
+    return ("BSP Lab: two-level, {} instances of {} meshes ({} triangles flattened), "
+            "top level {} nodes, {}{}").format(
+                build.get("instances", "?"), build.get("meshes", "?"),
+                stats["scene"]["triangles"], build.get("top_nodes", "?"), built, rendered)
+
+
+def flat_report(stats, build, seconds, rendered):
     built = ("tree reused (built in {:.3f} s by an earlier press)" if build.get("reused")
              else "built in {:.3f} s").format(seconds)
     return "BSP Lab: {} triangles, {} nodes, {}{}".format(
         stats["scene"]["triangles"], build.get("nodes", "?"), built, rendered)
+
+
+# The status bar's line by the tree's kind (the build statistics' "structure").
+BUILD_REPORTS = {"bsp": flat_report, "bvh": flat_report, "two_level": two_level_report}
+
+
+def _flat_nodes(build):
+    return build.get("nodes", "?")
+
+
+def _top_nodes(build):
+    return "{} top".format(build.get("top_nodes", "?"))
+
+
+# B's node count in the report, by its kind: a two-level build's top level.
+NODE_COUNTS = {"bsp": _flat_nodes, "bvh": _flat_nodes, "two_level": _top_nodes}
 
 
 def b_report(stats):
@@ -97,7 +120,7 @@ def b_report(stats):
     if "b" not in stats:
         return ""
     build = stats["b"]["build"]
-    nodes = build["nodes"] if "nodes" in build else "{} top".format(build.get("top_nodes", "?"))
+    nodes = NODE_COUNTS[build["structure"]](build)
     return "; B: {} nodes, {}, rendered in {:.3f} s".format(
         nodes, "tree reused" if build.get("reused") else
         "built in {:.3f} s".format(build.get("build_seconds", 0.0)),

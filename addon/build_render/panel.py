@@ -6,11 +6,11 @@ job's progress) and its Statistics sub-panel."""
 import bpy
 
 from .. import backend, tree_options
+from ..jobs.scene_reader import preview_size
 from ..sidebar import MAIN_PANEL, BSPLabPanel, BSPLabSubPanel, draw_options
 from ..state import STATE
 from . import statistics
 from .operator import BSPLAB_OT_build_render
-from .scene_reader import preview_size
 
 # `UILayout.progress` was added in Blender 4.0; older versions get a
 # read-only slider instead.

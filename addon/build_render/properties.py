@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Build & Render's settings (`Scene.bsplab`) and the running job's state
-(`WindowManager.bsplab_job`)."""
+"""Build & Render's settings (`Scene.bsplab`), the K sweep's included
+(k_sweep/: saved files have them here)."""
 
 import json
 
@@ -8,7 +8,6 @@ import bpy
 from bpy.props import (
     BoolProperty,
     EnumProperty,
-    FloatProperty,
     IntProperty,
     StringProperty,
 )
@@ -141,29 +140,14 @@ def _json_or_empty(text):
         return {}
 
 
-class BSPLabJobState(bpy.types.PropertyGroup):
-    """State of the running job. On the window manager, not the scene:
-    it is runtime state, and updating it must not touch scene data."""
-
-    is_running: BoolProperty(name="Running", default=False)
-    progress: FloatProperty(
-        name="Progress", default=0.0, min=0.0, max=1.0, subtype='FACTOR',
-    )
-
-
 tree_options.add_option_properties(BSPLabSettings, tree_options.BUILD_OPTIONS)
 
-classes = (
-    BSPLabSettings,
-    BSPLabJobState,
-)
+classes = (BSPLabSettings,)
 
 
 def register_props():
     bpy.types.Scene.bsplab = bpy.props.PointerProperty(type=BSPLabSettings)
-    bpy.types.WindowManager.bsplab_job = bpy.props.PointerProperty(type=BSPLabJobState)
 
 
 def unregister_props():
-    del bpy.types.WindowManager.bsplab_job
     del bpy.types.Scene.bsplab

@@ -81,8 +81,8 @@ def embree_rows(embree):
     if not embree.get("available", False):
         return [("Embree", embree.get("message", "not available"))]
     rows = []
-    if embree.get("compared"):
-        rows += _compared_rows(embree)
+    if embree.get("structure"):
+        rows += COMPARED_ROWS[embree["structure"]](embree)
     rows += [
         ("Embree Trace", _seconds(embree.get("embree_seconds"))),
         ("BSP Lab Trace", _seconds(embree.get("bsplab_seconds"))),
@@ -104,15 +104,22 @@ def embree_rows(embree):
     return rows
 
 
-def _compared_rows(embree):
-    """What the Embree comparison compared, short enough for the sidebar: a
-    two-level build's hits against Embree's on the flattened scene, matched
-    by the triangle's index in it."""
-    if str(embree["compared"]).startswith("two-level"):
-        return [("Embree Traced", "flattened scene"),
-                ("Embree Tris", _count(embree.get("embree_triangles"))),
-                ("Hits Matched", "by flat triangle")]
+def _flattened_rows(embree):
+    """A two-level build's hits against Embree's on the flattened scene,
+    matched by the triangle's index in it."""
+    return [("Embree Traced", "flattened scene"),
+            ("Embree Tris", _count(embree.get("embree_triangles"))),
+            ("Hits Matched", "by flat triangle")]
+
+
+def _same_triangles_rows(_embree):
     return [("Embree Traced", "same triangles")]
+
+
+# What the Embree comparison compared, by the tree's kind (the comparison's
+# "structure", jobs/embree_check.py), short enough for the sidebar.
+COMPARED_ROWS = {"bsp": _same_triangles_rows, "bvh": _same_triangles_rows,
+                 "two_level": _flattened_rows}
 
 
 # What a tree is made of (the build statistics' "structure"), as the panel
@@ -120,18 +127,16 @@ def _compared_rows(embree):
 STRUCTURE_NAMES = {"bsp": "split planes", "bvh": "BVH (boxes)"}
 
 
+def mesh_structure(build):
+    """The structure of the trees that hold the triangles: a flat tree's own,
+    a two-level build's mesh trees' ("mesh_structure")."""
+    return build.get("mesh_structure", build.get("structure"))
+
+
 def is_bvh(build):
-    """Whether the build statistics are a BVH's (boxes, no split planes)."""
-    return build.get("structure") == "bvh"
-
-
-# The panel's "Instances" choice as the statistics name it.
-INSTANCES_MODE_NAMES = {"two_level": "two-level", "flatten": "flatten"}
-
-
-def is_two_level(build):
-    """Whether the build statistics are a two-level build's."""
-    return build.get("instances_mode") == "two_level"
+    """Whether the rays step through BVH nodes (boxes, no split planes): a
+    BVH, or a two-level build of BVH mesh trees."""
+    return mesh_structure(build) == "bvh"
 
 
 def _mesh_trees(build):
@@ -157,7 +162,7 @@ def _two_level_tree(build):
 def two_level_rows(build):
     """The Build rows of a two-level build: both levels, and what the
     flattened scene would hold."""
-    structure = STRUCTURE_NAMES.get(build.get("structure"), "-")
+    structure = STRUCTURE_NAMES.get(build.get("mesh_structure"), "-")
     return [
         ("Built As", "two-level"),
         ("Method", str(build.get("method", "-"))),
@@ -180,17 +185,14 @@ def two_level_rows(build):
     ]
 
 
-def build_rows(build):
-    """The Build section's rows. A BVH has no split planes, no kd or general
-    nodes, no empty leaves and no duplicated references (each triangle is in
-    one leaf): those rows are a kd or BSP tree's only, and a BVH shows its
-    node layout's bytes instead. A two-level build shows both levels
-    (two_level_rows)."""
-    if is_two_level(build):
-        return two_level_rows(build)
+def flat_rows(build):
+    """The Build rows of a flat tree. A BVH has no split planes, no kd or
+    general nodes, no empty leaves and no duplicated references (each
+    triangle is in one leaf): those rows are a kd or BSP tree's only, and a
+    BVH shows its node layout's bytes instead."""
     bvh = is_bvh(build)
-    rows = [("Built As", "flatten")] if build.get("instances_mode") == "flatten" else []
-    rows += [
+    rows = [
+        ("Built As", "flatten"),
         ("Method", str(build.get("method", "-"))),
         ("Build Quality", str(build.get("build_quality", "-"))),
         ("Structure", STRUCTURE_NAMES.get(build.get("structure"), "-")),
@@ -223,6 +225,16 @@ def build_rows(build):
                                             _bytes(build.get("box_bytes")))),
         ]
     return rows
+
+
+# The Build rows by the tree's kind (the build statistics' "structure").
+BUILD_ROWS = {"bsp": flat_rows, "bvh": flat_rows, "two_level": two_level_rows}
+
+
+def build_rows(build):
+    """The Build section's rows; statistics without a "structure" (saved
+    by an add-on before two-level builds) are a flat tree's."""
+    return BUILD_ROWS.get(build.get("structure"), flat_rows)(build)
 
 
 def render_rows(render, bvh):

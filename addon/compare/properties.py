@@ -23,7 +23,7 @@ VIEW_ITEMS = (
 
 
 class BSPLabCompareSettings(bpy.types.PropertyGroup):
-    """Tree B of the A/B comparison: Build & Render reads it (build_render/scene_reader.py)."""
+    """Tree B of the A/B comparison: Build & Render reads it (build_render/scene_input.py)."""
 
     enabled: BoolProperty(
         name="Compare with B",

@@ -5,8 +5,8 @@ entered; on a two-level build, the top-level boxes it entered and the cells
 inside each instance it entered) and the triangles it tests (the hit in
 green, the missed in red, those skipped by culling in grey).
 
-`draw_data()` (walk_arrays.py, and two_level.py for a two-level build)
-computes the arrays once per inspection, without bpy or gpu (the Blender
+`draw_data()` (walk_arrays.py; `two_level_draw_data()` for a two-level
+build) computes the arrays once per inspection, without bpy or gpu (the Blender
 tests check them in background mode, where drawing raises); the POST_VIEW
 handler draws the kept inspection's (`STATE.inspection`), making the
 batches on the first frame after the inspection.

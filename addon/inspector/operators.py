@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The ray inspector's operators: trace one ray with the kept tree and show
 its walk (panel: panel.py; viewport: draw.py). The tree is the one the
-last Build & Render's preview shows (`STATE.shown_build`, build_render/shown_build.py).
+last Build & Render's preview shows (`STATE.shown_build`, jobs/shown_build.py).
 
 - `bsplab.inspect_pixel(x=, y=)`: the ray of a preview pixel (x from the
   left, y from the bottom row, as Blender counts image pixels); invoked in
@@ -21,13 +21,13 @@ import bpy
 from bpy.props import FloatVectorProperty, IntProperty
 
 from .. import backend
-from ..build_render import preview, shown_build, tree_cache
-from ..build_render.job import make_camera
-from ..build_render.worker import UserError
 from ..compare import images as compare_images
+from ..jobs import preview, shown_build
+from ..jobs.scene_reader import make_camera
+from ..jobs.worker import UserError
 from ..sidebar import tag_redraw_viewports
 from ..state import STATE
-from . import draw, trace, two_level
+from . import trace, walk_arrays
 
 PICK_HINT = ("BSP Lab: click a pixel of the preview (Image Editor) or a point in the "
              "3D Viewport; Esc or right-click cancels")
@@ -66,16 +66,25 @@ def kept_tree(context):
     return build, tree
 
 
+def _inspect_flat(build, tree, origin, direction, source):
+    inspection = trace.inspect(tree, origin, direction, build.cull, source)
+    return inspection, walk_arrays.draw_data(tree, build.triangles, inspection)
+
+
+def _inspect_two_level(_build, tree, origin, direction, source):
+    # Both levels' walk (InstancedTree.trace_path); no culling in two levels.
+    inspection = trace.inspect_two_level(tree, origin, direction, source,
+                                         shown_build.names_of(tree))
+    return inspection, walk_arrays.two_level_draw_data(tree, inspection)
+
+
+# The walk and what the viewport draws of it, by the tree's kind (tree.structure).
+INSPECTIONS = {"bsp": _inspect_flat, "bvh": _inspect_flat, "two_level": _inspect_two_level}
+
+
 def run_inspection(context, build, tree, origin, direction, source, start):
     """Trace, keep the result and its drawing; return the inspection."""
-    if tree_cache.is_two_level(tree):
-        # Both levels' walk (InstancedTree.trace_path); no culling in two levels.
-        inspection = two_level.inspect(tree, origin, direction, source,
-                                       shown_build.names_of(tree))
-        data = two_level.draw_data(tree, inspection)
-    else:
-        inspection = trace.inspect(tree, origin, direction, build.cull, source)
-        data = draw.draw_data(tree, build.triangles, inspection)
+    inspection, data = INSPECTIONS[tree.structure](build, tree, origin, direction, source)
     inspection["draw"] = data
     # Click to panel ready: what the panel shows and time_inspector.py prints.
     inspection["seconds"] = time.perf_counter() - start

@@ -3,9 +3,11 @@
 ray's counts and its step-by-step list (of a two-level build: the top
 level's steps, then each instance entered and the steps inside it)."""
 
+from typing import NamedTuple
+
 import bpy
 
-from ..build_render import shown_build
+from ..jobs import shown_build
 from ..sidebar import BSPLabSubPanel
 from ..state import STATE
 from .operators import BSPLAB_OT_inspect_clear, BSPLAB_OT_inspect_pick
@@ -28,18 +30,22 @@ def hit_text(inspection, box):
     return "{} at t {:.4g}".format(totals["hit_prim"], totals["hit_t"])
 
 
-def count_rows(inspection):
-    """(label, text) of the inspection's totals."""
-    if inspection.get("structure") == "two_level":
-        return two_level_count_rows(inspection)
+def node_count_row(totals, structure):
+    """The row of the steps' node tests: a BVH has no general nodes, its
+    steps test boxes; a kd or BSP tree's general steps."""
+    if structure == "bvh":
+        return ("Box Tests", str(totals["box_tests"]))
+    return ("General", str(totals["general_steps"]))
+
+
+def flat_count_rows(inspection):
+    """(label, text) of one tree's walk's totals."""
     totals = inspection["counts"]
     hit = hit_text(inspection, "the tree box")
     return [
         ("Ray", inspection["source"]),
         ("Steps", "{} ({} leaves)".format(totals["steps"], totals["leaves"])),
-        # A BVH has no general nodes; its steps test boxes.
-        ("Box Tests", str(totals["box_tests"])) if inspection.get("structure") == "bvh"
-        else ("General", str(totals["general_steps"])),
+        node_count_row(totals, inspection["structure"]),
         ("Tests", str(totals["tests"])),
         ("Culled", str(totals["culled"])),
         ("Hit", hit),
@@ -48,7 +54,7 @@ def count_rows(inspection):
 
 
 def two_level_count_rows(inspection):
-    """count_rows() of a two-level walk: the top level's steps, the
+    """flat_count_rows() of a two-level walk: the top level's steps, the
     instances entered, the steps inside them (summed) and the hit's
     instance."""
     totals = inspection["counts"]
@@ -59,8 +65,7 @@ def two_level_count_rows(inspection):
         ("Top Steps", "{} ({} leaves)".format(totals["top_steps"], top_leaves)),
         ("Instances", "{} entered".format(totals["instance_visits"])),
         ("Steps", "{} ({} leaves)".format(totals["steps"], totals["leaves"])),
-        ("Box Tests", str(totals["box_tests"])) if inspection.get("mesh_structure") == "bvh"
-        else ("General", str(totals["general_steps"])),
+        node_count_row(totals, inspection["mesh_structure"]),
         ("Tests", str(totals["tests"])),
         ("Hit", hit),
     ]
@@ -82,7 +87,7 @@ TOP_HEADER = ("#", "top node", "t range", "inst.")
 
 
 def top_step_cells(row):
-    """The texts of one top-level step (two_level.top_rows)."""
+    """The texts of one top-level step (trace.top_rows)."""
     number, kind, t0, t1, instances = row
     return (str(number), kind, "{:.3g}-{:.3g}".format(t0, t1),
             ",".join(str(i) for i in instances))
@@ -152,16 +157,18 @@ class BSPLAB_PT_inspector(BSPLabSubPanel, bpy.types.Panel):
             split = col.split(factor=0.3)
             split.label(text=label)
             split.label(text=text)
-        if inspection.get("structure") == "two_level":
-            draw_two_level_steps(layout, inspection)
-            return
-        lines, more = step_lines(inspection)
-        box = layout.box()
-        col = box.column(align=True)
-        for cells in [STEP_HEADER] + lines:
-            draw_step(col, cells)
-        if more:
-            col.label(text="... {} more steps".format(more))
+        WALK_PANELS[inspection["structure"]].draw_steps(layout, inspection)
+
+
+def draw_flat_steps(layout, inspection):
+    """One tree's steps."""
+    lines, more = step_lines(inspection)
+    box = layout.box()
+    col = box.column(align=True)
+    for cells in [STEP_HEADER] + lines:
+        draw_step(col, cells)
+    if more:
+        col.label(text="... {} more steps".format(more))
 
 
 def draw_two_level_steps(layout, inspection):
@@ -176,6 +183,24 @@ def draw_two_level_steps(layout, inspection):
             draw_step(col, cells)
     if more and col is not None:
         col.label(text="... {} more steps".format(more))
+
+
+class WalkPanel(NamedTuple):
+    """How the panel shows one kind of walk."""
+
+    count_rows: object  # inspection -> [(label, text), ...]
+    draw_steps: object  # (layout, inspection) -> None
+
+
+# The panel by the inspected tree's kind (the inspection's "structure").
+_FLAT = WalkPanel(flat_count_rows, draw_flat_steps)
+WALK_PANELS = {"bsp": _FLAT, "bvh": _FLAT,
+               "two_level": WalkPanel(two_level_count_rows, draw_two_level_steps)}
+
+
+def count_rows(inspection):
+    """(label, text) of the inspection's totals."""
+    return WALK_PANELS[inspection["structure"]].count_rows(inspection)
 
 
 classes = (BSPLAB_PT_inspector,)

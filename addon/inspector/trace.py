@@ -6,12 +6,14 @@ pixel (`pixel_ray`, the camera model of `bsplab.Camera.rays` restated for one
 pixel: the Blender tests check it bit for bit against `rays()`), a pick in
 the viewport a ray from the view. `inspect()` traces it with the kept tree's
 `trace_path` and turns the walk into what the panel lists: the counts and
-one row per visited node (for a BVH, the boxes the ray entered).
+one row per visited node (for a BVH, the boxes the ray entered);
+`inspect_two_level()` does the same for a two-level build's walk through
+both levels. operators.py chooses between them by `tree.structure`.
 """
 
 import numpy as np
 
-from ..build_render.worker import UserError
+from ..jobs.worker import UserError
 
 # Names of the trace_path codes (bsplab.tree.KINDS / TEST_RESULTS), restated
 # here so that the panel draws without the core.
@@ -142,7 +144,7 @@ def inspect(tree, origin, direction, cull, source):
     return {
         "source": source,
         # "bvh" or "bsp" (split planes): which counters and drawing apply.
-        "structure": getattr(tree, "structure", "bsp"),
+        "structure": tree.structure,
         "origin": origin,
         "direction": direction,
         "cull": bool(cull),
@@ -151,4 +153,105 @@ def inspect(tree, origin, direction, cull, source):
         "rows": step_rows(path),
         "missed_box": len(path["node"]) == 0,
         "end_t": segment_end(path, tree.bounds, origin.astype(np.float64)),
+    }
+
+
+# -- a two-level build's walk (a bsplab.InstancedTree) ---------------------------
+
+
+def top_rows(tree, path):
+    """One row per top-level node visited, in visit order: (number from 1,
+    "box" or "leaf", t0, t1, the leaf's instances (a tuple; () for a box))."""
+    top = path["top"]
+    arrays = tree.top_boxes()
+    # top_boxes lists every node once; find each visited node's row.
+    where = {int(n): i for i, n in enumerate(arrays["node"].tolist())}
+    rows = []
+    for k, node in enumerate(top["node"].tolist()):
+        row = where[int(node)]
+        leaf = bool(arrays["leaf"][row])
+        rows.append((k + 1, "leaf" if leaf else "box", float(top["t_range"][k][0]),
+                     float(top["t_range"][k][1]),
+                     tuple(int(i) for i in arrays["instances"][row]) if leaf else ()))
+    return rows
+
+
+def two_level_counts(path):
+    """The walk's totals: counts' (summed over the instances entered)
+    and the top level's, the hit's instance and mesh."""
+    hit = int(path["instance"]) >= 0 and np.isfinite(path["t"])
+    visits = path["instances"]
+    leaves = sum(int(np.count_nonzero(v["path"]["kind"] == LEAF)) for v in visits)
+    hit_visit = next((v for v in visits if v["instance"] == path["instance"]), None)
+    out = totals(path, hit, leaves)
+    out.update({
+        "top_steps": int(path["top_steps"]),
+        "instance_visits": int(path["instance_visits"]),
+        "hit_instance": int(path["instance"]) if hit else None,
+        "hit_mesh": int(hit_visit["mesh"]) if hit and hit_visit is not None else None,
+        "flat_prim": int(path["flat_prim"]) if hit else None,
+    })
+    return out
+
+
+def scene_box(tree):
+    """(lo, hi) of the top level's root box: the whole scene."""
+    root = tree.top_boxes(0)
+    if not len(root["node"]):
+        return np.zeros(3), np.zeros(3)
+    return root["lo"][0].astype(np.float64), root["hi"][0].astype(np.float64)
+
+
+def two_level_segment_end(tree, path, origin):
+    """How far to draw the ray: to the hit, else to where it leaves the last
+    top box it entered, else (it missed the scene's box) past the box, as
+    segment_end does for one tree."""
+    if int(path["instance"]) >= 0 and np.isfinite(path["t"]):
+        return float(path["t"])
+    if len(path["top"]["t_range"]):
+        return float(np.max(path["top"]["t_range"][:, 1]))
+    lo, hi = scene_box(tree)
+    return float(np.linalg.norm((lo + hi) / 2 - origin) + np.linalg.norm(hi - lo))
+
+
+def inspect_two_level(tree, origin, direction, source, names=((), ())):
+    """Trace one ray through both levels of `tree` and keep what the panel
+    and the viewport show. `names` are the build's (instance names, mesh
+    names), for the panel.
+
+    InstancedTree.trace_path replays the core's walk: the top level's node
+    visits (boxes, in world units), then, at each top leaf, the instances
+    whose mesh tree the ray entered, each with its mesh tree's own
+    trace_path of the ray carried to the instance's object space. That ray
+    is o' + t d' = A^-1 (o + t d - b): the same t as the world ray, so every
+    t range reads in world distances.
+
+    The inspection has inspect()'s keys (so the panel's totals and the draw
+    handler work alike), with "structure" "two_level", "mesh_structure" (of
+    the mesh trees: "bsp" or "bvh"), "top_rows" (one per top node visited)
+    and "visits" (one per instance entered: its instance, mesh, whether it
+    holds the hit, and step_rows of its walk)."""
+    origin = np.asarray(origin, dtype=np.float32)
+    direction = np.asarray(direction, dtype=np.float32)
+    path = tree.trace_path(origin, direction)
+    hit_instance = int(path["instance"])
+    visits = [{"instance": int(v["instance"]), "mesh": int(v["mesh"]),
+               "hit": int(v["instance"]) == hit_instance,
+               "rows": step_rows(v["path"])} for v in path["instances"]]
+    return {
+        "source": source,
+        "structure": tree.structure,
+        "mesh_structure": tree.meshes[0].structure if tree.meshes else None,
+        "origin": origin,
+        "direction": direction,
+        "cull": False,  # no leaf culling in two levels (InstancedTree.intersect refuses it)
+        "path": path,
+        "counts": two_level_counts(path),
+        "top_rows": top_rows(tree, path),
+        "visits": visits,
+        # The inner steps one after the other, as the flat inspection's rows.
+        "rows": [row for visit in visits for row in visit["rows"]],
+        "names": names,
+        "missed_box": int(path["top_steps"]) == 0,
+        "end_t": two_level_segment_end(tree, path, origin.astype(np.float64)),
     }

@@ -3,9 +3,11 @@
 bpy, no gpu): the ray, the leaf cells it visits (wireframes coloured by
 visit order; on a BVH, the boxes of every node it entered) and the
 triangles it tests (the hit in green, the missed in red, those skipped by
-culling in grey). draw.py makes the GPU batches of them; two_level.py
-builds the same arrays for a two-level build's walk. Free of bpy so that
-the tests without Blender can check them on the real core.
+culling in grey), of one tree's walk (`draw_data`) or of a two-level
+build's (`two_level_draw_data`: the top-level boxes entered, then what the
+ray crossed inside each instance). draw.py makes the GPU batches of them.
+Free of bpy so that the tests without Blender can check them on the real
+core.
 """
 
 import numpy as np
@@ -26,6 +28,10 @@ HIT_COLOUR = (0.1, 0.95, 0.2, 0.6)  # the closest hit: the ray's answer
 SUPERSEDED_COLOUR = (1.0, 0.55, 0.0, 0.5)  # hit, but a closer hit was found later
 MISS_COLOUR = (0.95, 0.1, 0.1, 0.4)
 CULLED_COLOUR = (0.6, 0.6, 0.6, 0.4)
+# The top-level boxes a two-level ray entered are drawn in one colour, apart
+# from the visit ramp of the cells inside the instances (FIRST_CELL ..
+# LAST_CELL), so the two levels never read alike.
+TOP_BOX_COLOUR = np.array((1.0, 0.65, 0.2, 0.55), np.float32)
 
 
 def visit_colours(count):
@@ -60,6 +66,19 @@ def box_lines(path):
     return boxes.segments(lo, hi), np.ascontiguousarray(colours, dtype=np.float32)
 
 
+def _leaf_cell_lines(tree, path):
+    return cell_lines(tree, path["node"][path["kind"] == trace.LEAF])
+
+
+def _box_lines(_tree, path):
+    return box_lines(path)
+
+
+# What a flat walk crossed, by the tree's structure: the visited leaves'
+# cells of a kd or BSP tree, every entered node's box of a BVH.
+CROSSED = {"bsp": _leaf_cell_lines, "bvh": _box_lines}
+
+
 def tested_triangle_colours(path, hit_prim):
     """Which references to draw (all but the repeats of a triangle this ray
     already tested) and the colour of each."""
@@ -84,11 +103,7 @@ def draw_data(tree, triangles, inspection):
     path = inspection["path"]
     hit_prim = inspection["counts"]["hit_prim"]
     ray, hit = ray_segment(inspection, hit_prim is not None)
-    if inspection.get("structure") == "bvh":
-        cell_coords, cell_cols = box_lines(path)
-    else:
-        leaves = path["node"][path["kind"] == trace.LEAF]
-        cell_coords, cell_cols = cell_lines(tree, leaves)
+    cell_coords, cell_cols = CROSSED[inspection["structure"]](tree, path)
     prims, colours = tested_triangle_colours(path, hit_prim)
     tris = triangles[prims.astype(np.int64)].reshape(-1, 3)
     return {
@@ -109,3 +124,84 @@ def ray_segment(inspection, hit):
     end = origin.astype(np.float64) + inspection["end_t"] * direction.astype(np.float64)
     ray = np.array([origin, end], dtype=np.float32)
     return ray, ray[1:] if hit else np.zeros((0, 3), np.float32)
+
+
+# -- a two-level build's walk (trace.inspect_two_level) -------------------------
+
+
+def instance_cells(tree, visit):
+    """(2E, 3) world line-list vertices of what the ray crossed inside one
+    instance entered (`visit`, a trace_path "instances" entry): the cells of
+    the leaves it visited, or, in a BVH mesh tree, the boxes of the nodes it
+    entered (carried to the world as 8 corners: a rotated box stays a box)."""
+    instance, inner = int(visit["instance"]), visit["path"]
+    return INSTANCE_CROSSED[tree.meshes[int(visit["mesh"])].structure](tree, instance, inner)
+
+
+def _instance_boxes(tree, instance, inner):
+    lo, hi = trace.entered_boxes(inner)
+    return boxes.corner_segments(tree.to_world(instance, boxes.corners(lo, hi)))
+
+
+def _instance_leaf_cells(tree, instance, inner):
+    segments = []
+    for leaf in inner["node"][inner["kind"] == trace.LEAF].tolist():
+        cell = tree.instance_leaf_cells(instance, max_depth=0, root=int(leaf))
+        segments.append(cell["vertices"][cell["edges"].reshape(-1)])
+    if not segments:
+        return np.zeros((0, 3), np.float32)
+    return np.concatenate(segments).astype(np.float32)
+
+
+# What a two-level ray crossed inside one instance, by its mesh tree's
+# structure: a BVH's entered boxes, a kd or BSP tree's visited leaves' cells.
+INSTANCE_CROSSED = {"bsp": _instance_leaf_cells, "bvh": _instance_boxes}
+
+
+def two_level_draw_data(tree, inspection):
+    """draw_data()'s arrays for a two-level walk: "ray", "hit";
+    "cell_coords" / "cell_colours" the top-level boxes entered (first
+    "top_vertices" rows, TOP_BOX_COLOUR) then, instance by instance, the
+    cells (or boxes) crossed inside (one colour per instance, on the visit
+    ramp);
+    "tri_coords" / "tri_colours" the tested triangles in world units. Also
+    "instance_cells": per instance entered, (instance, its cell vertices).
+    """
+    path = inspection["path"]
+    hit_instance = inspection["counts"]["hit_instance"]
+    ray, hit = ray_segment(inspection, hit_instance is not None)
+
+    top = boxes.segments(path["top"]["box_lo"], path["top"]["box_hi"])
+    per_instance = [(int(v["instance"]), instance_cells(tree, v)) for v in path["instances"]]
+    inner = [coords for _, coords in per_instance]
+    # One colour per instance entered, on the visit ramp in the order the
+    # ray entered them: which cells belong to which instance reads at once.
+    cell_counts = [len(c) for c in inner]
+    ramp = visit_colours(len(inner))
+    inner_colours = [np.broadcast_to(colour, (count, 4)) for colour, count in
+                     zip(ramp, cell_counts)]
+    cell_coords = np.concatenate([top] + inner) if inner else top
+    cell_colours = np.concatenate([np.broadcast_to(TOP_BOX_COLOUR, (len(top), 4))]
+                                  + inner_colours)
+
+    tris, colours = [], []
+    for visit in path["instances"]:
+        instance = int(visit["instance"])
+        hit_prim = int(path["prim"]) if instance == hit_instance else None
+        prims, cols = tested_triangle_colours(visit["path"], hit_prim)
+        mesh = tree.meshes[int(visit["mesh"])]
+        local = mesh.triangles[prims.astype(np.int64)]
+        tris.append(tree.to_world(instance, local).reshape(-1, 3))
+        colours.append(np.repeat(cols, 3, axis=0))
+    return {
+        "ray": ray,
+        "hit": hit,
+        "cell_coords": np.ascontiguousarray(cell_coords, dtype=np.float32),
+        "cell_colours": np.ascontiguousarray(cell_colours, dtype=np.float32),
+        "tri_coords": np.ascontiguousarray(np.concatenate(tris) if tris else
+                                           np.zeros((0, 3)), dtype=np.float32),
+        "tri_colours": np.ascontiguousarray(np.concatenate(colours) if colours else
+                                            np.zeros((0, 4)), dtype=np.float32),
+        "top_vertices": len(top),
+        "instance_cells": per_instance,
+    }

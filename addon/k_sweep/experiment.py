@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import backend
-from ..build_render.worker import WorkerJob
+from ..jobs.worker import WorkerJob
 from . import plot
 
 PLOT_NAME = "BSP Lab Sweep K"

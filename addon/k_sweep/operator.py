@@ -5,10 +5,10 @@ table goes to `scene.bsplab.sweep_json`, the plot to its image block."""
 
 import bpy
 
-from ..build_render import preview
-from ..build_render.job_operator import JobOperator
-from ..build_render.scene_reader import read_camera_and_geometry
-from ..build_render.worker import UserError
+from ..jobs import preview
+from ..jobs.job_operator import JobOperator
+from ..jobs.scene_reader import read_camera_and_geometry
+from ..jobs.worker import UserError
 from . import experiment
 
 

@@ -3,12 +3,12 @@
 translucent and clipped to their cells, and its cells as wireframes; a
 BVH's node boxes as wireframes coloured by depth; for a two-level build,
 the top level's boxes and the instance under the 3D cursor's own tree in
-place (two_level.py).
+place (in_place.py).
 
 A `SpaceView3D` draw handler ('WINDOW', 'POST_VIEW': world space, under the
 viewport's own depth buffer) is added while the panel's "Tree Overlay" box
 is ticked. What it draws is made at most once per change: the arrays by
-`geometry.GeometryCache` (bsplab walks the tree only when the tree, the
+`cache.GeometryCache` (bsplab walks the tree only when the tree, the
 settings or, under the cursor, the cursor moved), the GPU batches from
 those arrays when they are new. A frame then costs at most three draw
 calls, whatever the tree's size. The tree is the one Build & Render kept
@@ -23,7 +23,6 @@ import time
 
 import bpy
 
-from ..build_render.tree_cache import is_two_level
 from ..sidebar import tag_redraw_viewports
 from ..state import STATE
 from . import geometry
@@ -35,12 +34,6 @@ def kept_tree():
     """The tree the last Build & Render kept (a bsplab.Tree, or a
     bsplab.InstancedTree for a two-level build), or None."""
     return STATE.kept_tree()
-
-
-def kept_two_level():
-    """Whether the kept tree is a two-level build: the overlay draws its top
-    level's boxes and the instance under the 3D cursor (two_level.py)."""
-    return is_two_level(STATE.kept_tree())
 
 
 def redraw_if_tree_changed(context):

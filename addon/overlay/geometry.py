@@ -9,8 +9,8 @@ Blender and those in Blender check exactly what is handed to `batch_for_shader`,
 while the GPU drawing itself is only seen in the GUI check under Xvfb.
 """
 
-import weakref
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -130,7 +130,7 @@ def count_note(shown, cut, total, total_cut, cap, noun):
 
 
 def _capped_walk(query, settings, root):
-    """`query(max_depth, root, cap)` (the core's split_polygons or
+    """`query(max_depth, root, cap)` (a view's split_polygons or
     node_boxes) at the settings' cap, how many there are in all and whether
     that count was cut too."""
     found = query(settings.max_depth, root, settings.cap)
@@ -142,16 +142,30 @@ def _capped_walk(query, settings, root):
     return found, total, total_cut
 
 
-def _split_planes(tree, settings, root):
-    return _capped_walk(lambda depth, node, cap: tree.split_polygons(
-        depth, root=node, max_polygons=cap), settings, root)
+class TreeView:
+    """A flat tree as the overlay walks it: its own queries (split_polygons,
+    node_boxes, leaf_cells) and its boxes' wireframe. in_place.InstanceView
+    answers the same for an instance of a two-level build, in the world."""
 
+    # How the notes name what is drawn, and the node the cursor scope starts at.
+    of = ""
+    subtree = "node"
 
-def _cells(tree, settings, root):
-    """The cells the drawn planes cut root's cell into: the leaves down to
-    one level below the slider's depth, and the nodes at that level in
-    place of their deeper subtrees (so the cells tile root's cell)."""
-    return tree.leaf_cells(max_depth=settings.max_depth + 1, root=root, max_cells=settings.cap)
+    def __init__(self, tree):
+        self.tree = tree
+
+    def split_polygons(self, depth, root, cap):
+        return self.tree.split_polygons(depth, root=root, max_polygons=cap)
+
+    def node_boxes(self, depth, root, cap):
+        return self.tree.node_boxes(depth, root=root, max_boxes=cap)
+
+    def leaf_cells(self, depth, root, cap):
+        return self.tree.leaf_cells(max_depth=depth, root=root, max_cells=cap)
+
+    @staticmethod
+    def wireframe(found):
+        return boxes.wireframe(found["lo"], found["hi"])
 
 
 def empty_geometry(note):
@@ -167,32 +181,28 @@ def empty_geometry(note):
     }
 
 
-def is_bvh(tree):
-    """Whether `tree` is a BVH (boxes; no split planes, no cells)."""
-    return getattr(tree, "structure", "bsp") == "bvh"
-
-
 # Said on the panel for a BVH in place of the options it ignores.
 BVH_NOTE = "a BVH: its node boxes, coloured by depth (no planes, no cells)"
 
 
-def _node_boxes(tree, settings, root):
-    return _capped_walk(lambda depth, node, cap: tree.node_boxes(
-        depth, root=node, max_boxes=cap), settings, root)
+def _subtree_note(view, settings, root, root_depth, out):
+    if settings.scope == "cursor":
+        out["notes"].insert(0, f"subtree of {view.subtree} {root:,} (depth {root_depth})")
 
 
-def box_geometry(tree, settings, root, root_depth):
+def box_geometry(view, settings, root, root_depth):
     """A BVH's overlay: the wireframes of its node boxes down to
     `settings.max_depth` below `root`, coloured by depth whatever
     `colour_by` says (a box has no kind), in the arrays of
     overlay_geometry() (the edges are its "line_indices" over
-    "face_positions"; there are no faces and no cells)."""
-    found, total, total_cut = _node_boxes(tree, settings, root)
+    "face_positions"; there are no faces and no cells). `view`: a
+    TreeView, or an in_place.InstanceView."""
+    found, total, total_cut = _capped_walk(view.node_boxes, settings, root)
     shown = len(found["node"])
-    positions, edges = boxes.wireframe(found["lo"], found["hi"])
+    positions, edges = view.wireframe(found)
     rgb = np.repeat(depth_colours(found["depth"], settings.max_depth), 8, axis=0)
     out = empty_geometry(count_note(shown, found["cut"], total, total_cut, settings.cap,
-                                    "node boxes"))
+                                    "node boxes" + view.of))
     out.update({
         "face_positions": positions,
         "face_colours": np.hstack([rgb, np.full((len(rgb), 1), settings.alpha, np.float32)]),
@@ -200,12 +210,10 @@ def box_geometry(tree, settings, root, root_depth):
         "line_indices": edges,
         "polygons": shown, "polygon_total": total, "cut": bool(found["cut"]),
         "root": int(root), "root_depth": int(root_depth),
-        "depth": found["depth"], "node": found["node"], "leaf": found["leaf"],
-        "boxes": shown,
+        "depth": found["depth"], "node": found["node"], "boxes": shown,
     })
     out["notes"].append(BVH_NOTE)
-    if settings.scope == "cursor":
-        out["notes"].insert(0, f"subtree of node {root:,} (depth {root_depth})")
+    _subtree_note(view, settings, root, root_depth, out)
     return out
 
 
@@ -223,19 +231,25 @@ def overlay_geometry(tree, settings, cursor=None):
     location, needed in the "cursor" scope. A BVH's are its node boxes
     (box_geometry): the same keys, "polygons" counting boxes.
     """
-    bsplab = backend.import_bsplab()
+    drawn = FLAT_DRAWN[tree.structure]
     start = subtree_root(tree, settings, cursor)
     if start is None:
-        return empty_geometry("3D cursor is in no leaf's box" if is_bvh(tree)
-                              else "3D cursor is outside the tree's box")
-    root, root_depth = start
-    if is_bvh(tree):
-        return box_geometry(tree, settings, root, root_depth)
-    polygons, total, total_cut = _split_planes(tree, settings, root)
+        return empty_geometry(drawn.outside_note)
+    return drawn.make(TreeView(tree), settings, *start)
+
+
+def plane_geometry(view, settings, root, root_depth):
+    """A kd or BSP tree's overlay (overlay_geometry()): its split planes
+    below `root`, and the cells the drawn planes cut root's cell into when
+    asked (the leaves down to one level below the slider's depth, and the
+    nodes at that level in place of their deeper subtrees, so the cells
+    tile root's cell). `view`: a TreeView, or an in_place.InstanceView."""
+    bsplab = backend.import_bsplab()
+    polygons, total, total_cut = _capped_walk(view.split_polygons, settings, root)
     colours = polygon_colours(polygons, settings)
     shown = len(polygons["node"])
     out = empty_geometry(count_note(shown, polygons["cut"], total, total_cut, settings.cap,
-                                    "split polygons"))
+                                    "split polygons" + view.of))
     out.update({
         "face_positions": np.ascontiguousarray(polygons["vertices"], np.float32),
         "face_colours": per_vertex(colours, polygons["offsets"], settings.alpha),
@@ -246,10 +260,9 @@ def overlay_geometry(tree, settings, cursor=None):
         "root": int(root), "root_depth": int(root_depth),
         "kind": polygons["kind"], "depth": polygons["depth"], "node": polygons["node"],
     })
-    if settings.scope == "cursor":
-        out["notes"].insert(0, f"subtree of node {root:,} (depth {root_depth})")
+    _subtree_note(view, settings, root, root_depth, out)
     if settings.cells:
-        cells = _cells(tree, settings, root)
+        cells = view.leaf_cells(settings.max_depth + 1, root, settings.cap)
         vertices = np.ascontiguousarray(cells["vertices"], np.float32)
         out.update({
             "cell_positions": vertices,
@@ -257,43 +270,23 @@ def overlay_geometry(tree, settings, cursor=None):
             "cell_indices": np.ascontiguousarray(cells["edges"], np.uint32),
             "cells": len(cells["node"]), "cells_cut": bool(cells["cut"]),
         })
-        cell_note = f"{len(cells['node']):,} cells"
+        cell_note = f"{len(cells['node']):,} cells{view.of}"
         out["notes"].append(cell_note + (f" (cut at {settings.cap:,})" if cells["cut"] else ""))
     return out
 
 
-class GeometryCache:
-    """The last overlay geometry and what it was made from: the draw handler
-    and the panel ask every redraw, the core walks only when the tree, the
-    settings or (in the cursor scope) the cursor changed. Holds the tree
-    weakly: a forgotten tree must be freed, not kept alive by the overlay."""
+class FlatDrawn(NamedTuple):
+    """What the overlay draws of one kind of flat tree."""
 
-    def __init__(self):
-        self.clear()
+    make: object  # (view, settings, root, root_depth) -> the arrays
+    outside_note: str  # said when the 3D cursor is in no node of the tree
+    # The arrays' key of the wireframe of its cells: a BVH's node boxes are
+    # what stands for cells.
+    cells_key: str
 
-    def clear(self):
-        self._tree = lambda: None
-        self._key = None
-        self._geometry = None
-        self.builds = 0  # how many times the core was asked: for the tests
 
-    def made_from(self, tree):
-        """True when the kept geometry was made from `tree`."""
-        return tree is not None and self._tree() is tree
-
-    def get(self, tree, settings, cursor=None):
-        if tree is None:
-            self.clear()
-            return None
-        # A two-level build draws the instance under the cursor whatever the
-        # scope: the cursor is part of its key always.
-        from . import two_level
-        instanced = two_level.is_two_level(tree)
-        follows_cursor = settings.scope == "cursor" or instanced
-        key = (settings, tuple(cursor) if follows_cursor and cursor else None)
-        if self._tree() is not tree or key != self._key:
-            make = two_level.two_level_geometry if instanced else overlay_geometry
-            self._geometry = make(tree, settings, cursor)
-            self._tree, self._key = weakref.ref(tree), key
-            self.builds += 1
-        return self._geometry
+# The flat overlay by the tree's structure (a two-level build's mesh trees too).
+FLAT_DRAWN = {
+    "bsp": FlatDrawn(plane_geometry, "3D cursor is outside the tree's box", "cell_positions"),
+    "bvh": FlatDrawn(box_geometry, "3D cursor is in no leaf's box", "face_positions"),
+}

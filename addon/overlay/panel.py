@@ -1,18 +1,38 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The "Tree Overlay" sub-panel of the BSP Lab sidebar tab."""
 
+from typing import NamedTuple
+
 import bpy
 
-from ..build_render import shown_build
+from ..jobs import shown_build
 from ..sidebar import BSPLabFeaturePanel, draw_toggle
 from . import draw as overlay_draw
-from . import geometry
 
 KIND_COLOUR_PROPS = (("colour_x", "x"), ("colour_y", "y"), ("colour_z", "z"),
                      ("colour_general", "general"))
 NO_TREE_MESSAGE = "Build & Render first: the overlay draws the last built tree"
 # A two-level build: what is drawn, said once above the settings.
 TWO_LEVEL_NOTE = "Two-level: top-level boxes, and the instance under the 3D cursor in place"
+
+
+class PanelKind(NamedTuple):
+    """What the panel says of one kind of kept tree."""
+
+    note: str  # said above the settings, or None
+    drawn_tree: object  # tree -> the tree whose structure the settings apply to
+    in_place: bool  # whether a row names the instance drawn in place
+
+
+_FLAT = PanelKind(None, lambda tree: tree, False)
+# The panel by the kept tree's kind (tree.structure). Of a two-level build,
+# the instances' mesh trees decide (all of one method).
+PANEL_KINDS = {
+    "bsp": _FLAT,
+    "bvh": _FLAT,
+    "two_level": PanelKind(TWO_LEVEL_NOTE, lambda tree: tree.meshes[0] if tree.meshes else None,
+                           True),
+}
 
 
 class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
@@ -29,11 +49,11 @@ class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
         layout.use_property_decorate = False
         props = context.scene.bsplab_overlay
         tree = overlay_draw.kept_tree()
-        instanced = overlay_draw.kept_two_level()
-        if instanced:
-            layout.label(text=TWO_LEVEL_NOTE, icon='INFO')
-        elif tree is None:
+        kind = PANEL_KINDS[tree.structure] if tree is not None else _FLAT
+        if tree is None:
             layout.label(text=NO_TREE_MESSAGE, icon='INFO')
+        elif kind.note:
+            layout.label(text=kind.note, icon='INFO')
 
         col = layout.column()
         col.active = props.show
@@ -41,21 +61,14 @@ class BSPLAB_PT_overlay(BSPLabFeaturePanel, bpy.types.Panel):
         col.prop(props, "scope")
         if props.scope == "cursor":
             col.prop(props, "subtree_depth")
-        # Of a two-level build, the instances' mesh trees decide (all of one method).
-        drawn_tree = tree.meshes[0] if instanced and tree.meshes else tree
-        if geometry.is_bvh(drawn_tree):
-            # Boxes by depth: a BVH has no kinds to colour and no cells.
-            col.label(text="BVH: boxes, depth 0 orange \u2192 {} blue".format(props.max_depth))
-        else:
-            col.prop(props, "colour_by")
-            draw_legend(col, props)
-            col.prop(props, "alpha")
-            col.prop(props, "cells")
+        drawn_tree = kind.drawn_tree(tree) if tree is not None else None
+        # Before any build, the settings of split planes.
+        SETTINGS_ROWS[drawn_tree.structure if drawn_tree is not None else "bsp"](col, props)
         col.prop(props, "cap")
 
         if props.show and tree is not None:
             arrays = overlay_draw.current_geometry(context.scene)
-            if instanced:
+            if kind.in_place:
                 draw_instance(layout, arrays, shown_build.names_of(tree))
             draw_notes(layout, arrays)
 
@@ -66,6 +79,22 @@ def draw_instance(layout, arrays, names):
     if arrays.get("instance") is not None:
         layout.label(text="In place: " + shown_build.instance_text(
             arrays["instance"], arrays["mesh"], names), icon='OUTLINER_OB_GROUP_INSTANCE')
+
+
+def draw_plane_settings(layout, props):
+    layout.prop(props, "colour_by")
+    draw_legend(layout, props)
+    layout.prop(props, "alpha")
+    layout.prop(props, "cells")
+
+
+def draw_box_settings(layout, props):
+    # Boxes by depth: a BVH has no kinds to colour and no cells.
+    layout.label(text="BVH: boxes, depth 0 orange \u2192 {} blue".format(props.max_depth))
+
+
+# The settings that apply, by the drawn tree's structure.
+SETTINGS_ROWS = {"bsp": draw_plane_settings, "bvh": draw_box_settings}
 
 
 def draw_legend(layout, props):

@@ -23,7 +23,8 @@ from addon_without_blender import addon_module as _addon_module
 
 
 jobs = _addon_module("build_render.job")
-worker = _addon_module("build_render.worker")
+worker = _addon_module("jobs.worker")
+messages = _addon_module("jobs.messages")
 
 
 def _spec(camera: bsplab.Camera, width: int, height: int):
@@ -74,7 +75,7 @@ def test_job_builds_renders_and_agrees_with_embree():
     assert compare["agree"] + explained == compare["rays"], compare
     assert compare["agree"] >= 0.99 * compare["rays"], compare
     assert embree["bsplab_seconds"] > 0 and embree["embree_seconds"] > 0
-    jobs.check_result(job.result)  # hits > 0: no UserError
+    messages.check_result(job.result)  # hits > 0: no UserError
     assert job.fraction() == pytest.approx(1.0)
 
 
@@ -107,7 +108,7 @@ def test_every_ray_missing_is_a_user_error():
     assert job.result["stats"]["render"]["hits"] == 0
     assert "embree" not in job.result["stats"]
     with pytest.raises(worker.UserError, match="every camera ray missed"):
-        jobs.check_result(job.result)
+        messages.check_result(job.result)
 
 
 def test_cancel_mid_way_ends_the_job_cancelled():
@@ -165,16 +166,16 @@ def test_error_messages_for_each_kind_of_failure():
 
 def test_plain_makes_results_json_friendly():
     value = {1: np.float32(0.5), "a": np.arange(3), "big": np.zeros(100), "t": (np.int64(2),)}
-    out = jobs.plain(value)
+    out = worker.plain(value)
     assert out == {"1": 0.5, "a": [0, 1, 2], "big": "array(100,)", "t": [2]}
     json.dumps(out)
 
 
 def test_the_addon_reads_the_scene_with_the_bsplab_packages_modules():
-    """addon/build_render/scene_reader.py holds no copy of the scene reading:
+    """addon/jobs/scene_reader.py holds no copy of the scene reading:
     its readers are bsplab.blender's (bpy-free to import)."""
     from bsplab.blender import extract, scene_camera as camera
-    reader = _addon_module("build_render.scene_reader")
+    reader = _addon_module("jobs.scene_reader")
     assert reader.CameraSpec is camera.CameraSpec
     assert reader.scene_camera is camera.scene_camera
     assert reader.CameraError is camera.CameraError
@@ -187,9 +188,9 @@ def test_the_addon_reads_the_scene_with_the_bsplab_packages_modules():
 
 
 # -----------------------------------------------------------------------------
-# Re-using the tree of the previous press (addon/build_render/tree_cache.py)
+# Re-using the tree of the previous press (addon/jobs/tree_cache.py)
 
-tree_cache = _addon_module("build_render.tree_cache")
+tree_cache = _addon_module("jobs.tree_cache")
 
 # What the add-on passes: every option of the method, threads included.
 KD_OPTIONS = {"threads": 2, "leaf_size": 1, "max_depth": 0, "leaf_boxes": "triangle"}

@@ -16,9 +16,10 @@ from bsplab.blender.scene_camera import CameraSpec
 from addon_without_blender import addon_module
 
 jobs = addon_module("build_render.job")
-tree_cache = addon_module("build_render.tree_cache")
+tree_cache = addon_module("jobs.tree_cache")
 statistics = addon_module("build_render.statistics")
-worker = addon_module("build_render.worker")
+worker = addon_module("jobs.worker")
+messages = addon_module("jobs.messages")
 
 KD_OPTIONS = {"threads": 2, "leaf_size": 1, "max_depth": 0, "leaf_boxes": "triangle"}
 
@@ -81,7 +82,7 @@ def test_two_level_job_renders_as_the_flattened_scene_and_agrees_with_embree(tra
     flat = ok(job_input(transformed, cam, triangles=transformed.flatten(), instanced=None))
     stats = two.result["stats"]
     build = stats["build"]
-    assert build["instances_mode"] == "two_level"
+    assert build["structure"] == "two_level" and build["mesh_structure"] == "bsp"
     assert build["meshes"] == len(transformed.meshes) == 2
     assert build["instances"] == len(transformed.mesh_index) == 60
     assert build["instanced_triangles"] == transformed.triangle_count == stats["scene"]["triangles"]
@@ -92,7 +93,7 @@ def test_two_level_job_renders_as_the_flattened_scene_and_agrees_with_embree(tra
     # The mesh trees' quality, as the panel's Build rows say it.
     assert build["build_quality"] == KD_OPTIONS.get("build_quality", "exact")
     assert dict(statistics.build_rows(build))["Build Quality"] == build["build_quality"]
-    assert flat.result["stats"]["build"]["instances_mode"] == "flatten"
+    assert flat.result["stats"]["build"]["structure"] == "bsp"
     # The same hits as one tree over the flattened triangles: the depth
     # images differ at most in a few pixels (edges, the transform's rounding).
     a, b = two.result["image"], flat.result["image"]
@@ -169,7 +170,7 @@ def test_a_flat_press_forgets_the_mesh_trees(transformed):
     assert cache.mesh_tree_count() == 2
     ok(job_input(transformed, cam, triangles=transformed.flatten(), instanced=None), cache)
     assert cache.mesh_tree_count() == 0 and len(cache) == 1
-    assert not tree_cache.is_two_level(cache.kept_tree())
+    assert cache.kept_tree().structure == "bsp"
 
 
 def test_identical_meshes_share_one_tree(transformed):
@@ -256,15 +257,15 @@ def test_progress_runs_over_the_mesh_builds(transformed):
 def test_instance_message():
     geo = geometry([np.eye(3, dtype=np.float32)[None]], [0, 0], np.tile(np.eye(4), (2, 1, 1)))
     geo.instance_names[1] = "'Cube' in 'Grid'"
-    text = jobs.instance_message("instance 1: its matrix is singular (determinant 0.0): it "
+    text = messages.instance_message("instance 1: its matrix is singular (determinant 0.0): it "
                                  "flattens the mesh", geo)
     assert "the instance of 'Cube' in 'Grid': its matrix is singular" in text
     assert "scaled to 0" in text
-    assert jobs.instance_message("top_bins must be ...", geo).endswith("top_bins must be ...")
+    assert messages.instance_message("top_bins must be ...", geo).endswith("top_bins must be ...")
 
 
 def test_two_level_rows_show_both_levels():
-    build = {"instances_mode": "two_level", "method": "kd", "structure": "bsp", "reused": False,
+    build = {"structure": "two_level", "method": "kd", "mesh_structure": "bsp", "reused": False,
              "mesh_trees_built": 3, "mesh_trees_reused": 1, "build_seconds": 0.25,
              "fingerprint_seconds": 0.001, "meshes": 4, "instances": 1200, "top_nodes": 2399,
              "top_bytes": 216000, "top_depth": 14, "bottom_nodes": 5000, "bottom_bytes": 80000,
@@ -278,6 +279,7 @@ def test_two_level_rows_show_both_levels():
     assert rows["Mesh Nodes"] == "5,000" and rows["Mesh Memory"] == "78.1 KiB"
     assert rows["Flattened Tris"] == "2,700,000"
     assert dict(statistics.build_rows(dict(build, reused=True)))["Tree"] == "reused"
-    flat = dict(statistics.build_rows({"instances_mode": "flatten", "method": "kd"}))
-    assert flat["Built As"] == "flatten"
-    assert "Built As" not in dict(statistics.build_rows({"method": "kd"}))  # older statistics
+    flat = dict(statistics.build_rows({"structure": "bsp", "method": "kd"}))
+    assert flat["Built As"] == "flatten" and "Top Nodes" not in flat
+    # Statistics saved before the "structure" key: a flat tree's rows.
+    assert dict(statistics.build_rows({"method": "kd"}))["Method"] == "kd"

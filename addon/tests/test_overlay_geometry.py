@@ -16,6 +16,7 @@ from bsplab.tree import KINDS
 from addon_without_blender import addon_module
 
 geometry = addon_module("overlay.geometry")
+cache_module = addon_module("overlay.cache")
 Settings = geometry.OverlaySettings
 
 
@@ -146,7 +147,7 @@ def test_cells_are_the_wireframes_of_the_cells_below_the_planes():
 
 def test_cache_walks_only_when_something_changed():
     tree = tree_of("kd")
-    cache = geometry.GeometryCache()
+    cache = cache_module.GeometryCache()
     first = cache.get(tree, Settings(), (0, 0, 0))
     assert cache.get(tree, Settings(), (1, 2, 3)) is first  # the cursor matters only under it
     assert cache.builds == 1

@@ -18,7 +18,7 @@ legend = _addon_module("drawing.legend")
 experiment = _addon_module("k_sweep.experiment")
 plot = _addon_module("k_sweep.plot")
 jobs = _addon_module("build_render.job")
-worker = _addon_module("build_render.worker")
+worker = _addon_module("jobs.worker")
 
 INK = (1.0, 0.0, 0.0)
 

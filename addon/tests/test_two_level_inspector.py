@@ -1,4 +1,4 @@
-"""The ray inspector on a two-level build (addon/inspector/two_level.py),
+"""The ray inspector on a two-level build (addon/inspector/trace.py, walk_arrays.py),
 checked without Blender on the real core: its rows are
 InstancedTree.trace_path's walk, its hit is intersect()'s, and what it
 draws lies where the walk went (the top boxes entered, the cells inside
@@ -12,7 +12,6 @@ import pytest
 from addon_without_blender import addon_module
 from test_two_level_overlay import inside, scene_of, world_box
 
-two_level = addon_module("inspector.two_level")
 walk_arrays = addon_module("inspector.walk_arrays")
 trace = addon_module("inspector.trace")
 
@@ -27,7 +26,7 @@ def inspect(method, ray):
     tree = scene_of(method)
     origin, direction = ray
     names = (["'Object {}'".format(i) for i in range(4)], ["Fan", "Cube"])
-    return tree, two_level.inspect(tree, origin, direction, "ray", names)
+    return tree, trace.inspect_two_level(tree, origin, direction, "ray", names)
 
 
 @pytest.mark.parametrize("method", ["kd", "bvh"])
@@ -73,12 +72,12 @@ def test_the_ray_down_on_the_cube_hits_instance_1():
 
 def test_draw_data_top_boxes_cells_in_place_and_triangles():
     tree, inspection = inspect("kd", ALONG_Y)
-    data = two_level.draw_data(tree, inspection)
+    data = walk_arrays.two_level_draw_data(tree, inspection)
     path = inspection["path"]
     # The top boxes entered: 24 line ends each, first, in the top colour.
     assert data["top_vertices"] == 24 * path["top_steps"]
     top = data["cell_coords"][:data["top_vertices"]]
-    assert np.allclose(data["cell_colours"][:data["top_vertices"]], two_level.TOP_BOX_COLOUR)
+    assert np.allclose(data["cell_colours"][:data["top_vertices"]], walk_arrays.TOP_BOX_COLOUR)
     lo, hi = path["top"]["box_lo"][0], path["top"]["box_hi"][0]
     assert inside(top[:24], (lo, hi))
     # Each instance's crossed cells, in world space inside that instance's box.
@@ -109,7 +108,7 @@ def test_draw_data_top_boxes_cells_in_place_and_triangles():
 
 def test_a_bvh_mesh_tree_draws_the_boxes_it_entered_in_place():
     tree, inspection = inspect("bvh", DOWN_ON_CUBE)
-    data = two_level.draw_data(tree, inspection)
+    data = walk_arrays.two_level_draw_data(tree, inspection)
     for (instance, cells), visit in zip(data["instance_cells"], inspection["path"]["instances"]):
         entered = trace.entered_boxes(visit["path"])[0]
         assert len(cells) == 24 * len(entered) > 0
@@ -118,10 +117,10 @@ def test_a_bvh_mesh_tree_draws_the_boxes_it_entered_in_place():
 
 def test_a_ray_that_misses_the_scene_is_still_drawn():
     tree = scene_of()
-    inspection = two_level.inspect(tree, (100.0, 100.0, 100.0), (1.0, 0.0, 0.0), "ray")
+    inspection = trace.inspect_two_level(tree, (100.0, 100.0, 100.0), (1.0, 0.0, 0.0), "ray")
     assert inspection["missed_box"] and inspection["counts"]["top_steps"] == 0
     assert inspection["counts"]["hit_instance"] is None and inspection["visits"] == []
-    data = two_level.draw_data(tree, inspection)
+    data = walk_arrays.two_level_draw_data(tree, inspection)
     assert len(data["hit"]) == 0 and len(data["cell_coords"]) == 0 and len(data["tri_coords"]) == 0
     assert data["ray"][1][0] > 100.0
 
@@ -129,8 +128,8 @@ def test_a_ray_that_misses_the_scene_is_still_drawn():
 def test_a_ray_between_the_instances_enters_the_top_level_only():
     tree = scene_of()
     # Down through (5, 5): inside the scene's box, in no instance's.
-    inspection = two_level.inspect(tree, (5.0, 5.0, 20.0), (0.0, 0.0, -1.0), "ray")
+    inspection = trace.inspect_two_level(tree, (5.0, 5.0, 20.0), (0.0, 0.0, -1.0), "ray")
     assert not inspection["missed_box"] and inspection["counts"]["top_steps"] >= 1
     assert inspection["counts"]["hit_instance"] is None
-    data = two_level.draw_data(tree, inspection)
+    data = walk_arrays.two_level_draw_data(tree, inspection)
     assert data["top_vertices"] == 24 * inspection["counts"]["top_steps"]

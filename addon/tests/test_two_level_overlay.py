@@ -1,4 +1,4 @@
-"""The tree overlay of a two-level build (addon/overlay/two_level.py), checked
+"""The tree overlay of a two-level build (addon/overlay/in_place.py), checked
 without Blender on the real core: the top level's boxes are InstancedTree.top_boxes',
 the instance drawn in place is the one under the cursor, and its planes and
 cells are its mesh tree's carried to the world (inside its world box)."""
@@ -16,7 +16,8 @@ from bsplab import instanced_scenes, scenes
 from addon_without_blender import addon_module
 
 geometry = addon_module("overlay.geometry")
-two_level = addon_module("overlay.two_level")
+cache_module = addon_module("overlay.cache")
+in_place = addon_module("overlay.in_place")
 Settings = geometry.OverlaySettings
 
 
@@ -60,7 +61,7 @@ def inside(points, box, slack=1e-4):
 @pytest.mark.parametrize("depth", [0, 1, 3, 8])
 def test_the_top_boxes_are_the_cores_at_each_depth(depth):
     tree = scene_of()
-    out = two_level.two_level_geometry(tree, Settings(max_depth=depth), cursor=None)
+    out = in_place.two_level_geometry(tree, Settings(max_depth=depth), cursor=None)
     top = tree.top_boxes(depth)
     assert out["top_boxes"] == out["top_total"] == len(top["node"]) > 0
     assert np.array_equal(out["top_node"], top["node"])
@@ -80,7 +81,7 @@ def test_the_top_boxes_are_the_cores_at_each_depth(depth):
 
 def test_the_top_boxes_are_capped_shallow_levels_first():
     tree = scene_of()
-    out = two_level.two_level_geometry(tree, Settings(max_depth=8, cap=3), cursor=None)
+    out = in_place.two_level_geometry(tree, Settings(max_depth=8, cap=3), cursor=None)
     assert out["top_boxes"] == 3 and out["top_total"] == len(tree.top_boxes(8)["node"]) > 3
     assert out["cut"]
     assert list(out["top_depth"]) == sorted(out["top_depth"])
@@ -92,8 +93,8 @@ def test_the_top_boxes_are_capped_shallow_levels_first():
     ((10.9, 10.5, 0.5), 3)])
 def test_the_instance_under_the_cursor_is_drawn_in_place(cursor, instance):
     tree = scene_of()
-    assert two_level.instance_under(tree, cursor) == instance
-    out = two_level.two_level_geometry(tree, Settings(max_depth=4, cells=True), cursor)
+    assert in_place.instance_under(tree, cursor) == instance
+    out = in_place.two_level_geometry(tree, Settings(max_depth=4, cells=True), cursor)
     assert out["instance"] == instance and out["mesh"] == tree.mesh_index[instance]
     polys = tree.instance_split_polygons(instance, 4)
     sizes = np.diff(polys["offsets"])
@@ -120,9 +121,9 @@ def test_the_instance_under_the_cursor_is_drawn_in_place(cursor, instance):
 
 def test_a_cursor_over_no_instance_draws_the_top_level_only():
     tree = scene_of()
-    out = two_level.two_level_geometry(tree, Settings(max_depth=4, cells=True), (5.0, 5.0, 0.5))
+    out = in_place.two_level_geometry(tree, Settings(max_depth=4, cells=True), (5.0, 5.0, 0.5))
     assert out["instance"] is None and out["polygons"] == 0 and out["cells"] == 0
-    assert two_level.NO_INSTANCE_NOTE in out["notes"]
+    assert in_place.NO_INSTANCE_NOTE in out["notes"]
     assert out["top_boxes"] == len(tree.top_boxes(4)["node"])
 
 
@@ -130,8 +131,8 @@ def test_the_cursor_scope_draws_the_instances_subtree():
     tree = scene_of()
     cursor = (10.0, 0.5, 1.0)  # in instance 1, the turned cube
     settings = Settings(max_depth=3, scope="cursor", subtree_depth=2)
-    out = two_level.two_level_geometry(tree, settings, cursor)
-    local = two_level.object_point(tree, 1, cursor)
+    out = in_place.two_level_geometry(tree, settings, cursor)
+    local = in_place.object_point(tree, 1, cursor)
     node, depth = tree.meshes[1].node_at(local, max_depth=2)
     assert (out["root"], out["root_depth"]) == (node, depth)
     assert out["polygons"] == len(tree.instance_split_polygons(1, 3, root=node)["node"])
@@ -140,7 +141,7 @@ def test_the_cursor_scope_draws_the_instances_subtree():
 
 def test_colour_by_kind_is_the_mesh_trees_kind():
     tree = scene_of()
-    out = two_level.two_level_geometry(tree, Settings(max_depth=4), (0.5, 0.5, 0.5))
+    out = in_place.two_level_geometry(tree, Settings(max_depth=4), (0.5, 0.5, 0.5))
     polys = tree.instance_split_polygons(0, 4)
     table = geometry.kind_colour_table(Settings())
     expected = np.repeat(table[polys["kind"]], np.diff(polys["offsets"]), axis=0)
@@ -149,7 +150,7 @@ def test_colour_by_kind_is_the_mesh_trees_kind():
 
 def test_a_bvh_mesh_tree_draws_its_boxes_in_place():
     tree = scene_of("bvh")
-    out = two_level.two_level_geometry(tree, Settings(max_depth=3), (10.0, 0.5, 1.0))
+    out = in_place.two_level_geometry(tree, Settings(max_depth=3), (10.0, 0.5, 1.0))
     boxes = tree.instance_node_boxes(1, 3)
     assert out["instance"] == 1 and out["boxes"] == len(boxes["node"]) > 0
     assert len(out["face_indices"]) == 0  # boxes: no faces
@@ -160,7 +161,7 @@ def test_a_bvh_mesh_tree_draws_its_boxes_in_place():
 
 def test_the_cache_follows_the_cursor_for_a_two_level_build_in_either_scope():
     tree = scene_of()
-    cache = geometry.GeometryCache()
+    cache = cache_module.GeometryCache()
     settings = Settings(max_depth=2)
     first = cache.get(tree, settings, (0.5, 0.5, 0.5))
     assert first["instance"] == 0 and cache.get(tree, settings, (0.5, 0.5, 0.5)) is first

@@ -154,9 +154,9 @@ def run(args):
         print("BSP Lab demo failed: {}".format(str(ex).strip()), file=sys.stderr)
         return 1
 
-    image = bpy.data.images[addon.build_render.preview.IMAGE_NAME]
+    image = bpy.data.images[addon.jobs.preview.IMAGE_NAME]
     out = os.path.abspath(args.out)
-    addon.build_render.preview.save_png(image, out)
+    addon.jobs.preview.save_png(image, out)
     print(addon.build_render.statistics.table(settings.stats))
     print("Saved {} ({} x {})".format(out, image.size[0], image.size[1]))
     return 0

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """What runs on a worker thread, and its errors: the base of Build & Render's
-job (job.py) and of the K sweep's (k_sweep/experiment.py).
+job (build_render/job.py) and of the K sweep's (k_sweep/experiment.py).
 
 Nothing here touches bpy: the operators copy the scene into numpy arrays
 and plain values first, a job computes on a worker thread (bsplab releases
@@ -9,6 +9,8 @@ the GIL, so Blender stays responsive) and the main thread then reads
 """
 
 import threading
+
+import numpy as np
 
 
 class UserError(Exception):
@@ -60,6 +62,21 @@ class WorkerJob:
 
     def fraction(self):
         return 0.0
+
+
+def plain(value):
+    """A job's results as plain values (numpy scalars and small arrays made
+    Python's, large arrays named by their shape): the main thread stores
+    them as JSON in the scene."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist() if value.size <= 16 else "array{}".format(value.shape)
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def error_message(bsplab, ex):

@@ -13,7 +13,6 @@ registers and draws when bsplab is missing.
 import sys
 
 from .. import backend
-from .job import TWO_LEVEL, TWO_LEVEL_CULL_MESSAGE, JobInput, TreeChoice, make_camera
 from .worker import UserError
 
 # The names this module hands on from bsplab.blender, and from which reader.
@@ -34,6 +33,11 @@ def _reader(name):
     # An attribute of this module (__getattr__ when not set), so a test can
     # replace one reader.
     return getattr(sys.modules[__name__], name)
+
+
+def make_camera(bsplab, spec):
+    """The bsplab.Camera of a CameraSpec (the scene camera as read here)."""
+    return bsplab.Camera(**spec.kwargs())
 
 
 def preview_size(render, preview_percentage):
@@ -71,61 +75,3 @@ def read_camera_and_geometry(context, bsplab, two_level=False):
             raise UserError("No visible mesh in the scene: nothing to build a tree from")
         raise UserError("The visible meshes are empty: they have no faces to build a tree from")
     return cam, geometry
-
-
-def checked_choice(methods, settings, tree=""):
-    """The TreeChoice of `settings` (A's or B's: a method and its options);
-    raise UserError for an unknown method or a K outside the method's range.
-    `tree` ("Tree B: ") starts the message."""
-    method = settings.method
-    if method not in methods:
-        raise UserError("{}Unknown tree method '{}'".format(tree, method))
-    info = methods[method]
-    params = info.get("params", ())
-    min_k, max_k = info.get("min_k"), info.get("max_k")
-    if "k" in params and min_k is not None and not min_k <= settings.k <= max_k:
-        raise UserError("{}K must be in {}..{} for {}, not {}".format(
-            tree, min_k, max_k, info.get("label", method), settings.k))
-    return TreeChoice(method, settings.build_options(params))
-
-
-def read_tree_b(scene, methods):
-    """Tree B's TreeChoice when "Compare with B" is on (compare/), else
-    None. B is built with A's thread count."""
-    compare = scene.bsplab_compare
-    if not compare.enabled:
-        return None
-    choice = checked_choice(methods, compare, tree="Tree B: ")
-    if "threads" not in methods[choice.method].get("params", ()):
-        return choice
-    return TreeChoice(choice.method, dict(choice.options, threads=scene.bsplab.threads))
-
-
-def read_scene(context, bsplab):
-    """Copy everything Build & Render's job needs out of bpy; raise UserError if unusable."""
-    scene = context.scene
-    settings = scene.bsplab
-    methods = bsplab.methods()
-    a = checked_choice(methods, settings)
-    b = read_tree_b(scene, methods)
-    two_level = settings.instances == TWO_LEVEL
-    if two_level and (settings.cull or settings.render_mode == "heat_culled"):
-        raise UserError(TWO_LEVEL_CULL_MESSAGE)
-    cam, geometry = read_camera_and_geometry(context, bsplab, two_level)
-    return JobInput(
-        triangles=None if two_level else geometry.triangles,
-        instanced=geometry if two_level else None,
-        objects=geometry.objects,
-        instances=geometry.instances,
-        camera=cam,
-        method=a.method,
-        options=a.options,
-        mode=settings.render_mode,
-        threads=settings.threads,
-        cull=settings.cull,
-        compare_with_embree=settings.compare_with_embree,
-        count_steps=settings.count_steps,
-        scene_name=scene.name,
-        b=b,
-        compare_view=scene.bsplab_compare.view,
-    )

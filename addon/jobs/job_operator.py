@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The base of the operators that run a worker job: Build & Render
-(operator.py) and the K sweep (k_sweep/operator.py).
+(build_render/operator.py) and the K sweep (k_sweep/operator.py).
 
 The work is split in three so that bpy data is only touched on the main
 thread: the operator's `make_job()` copies everything the job needs into

@@ -101,14 +101,13 @@ class InstancedKey:
         return digest.digest()[:DIGEST_BYTES]
 
 
-def instanced_key(mesh_keys, mesh_index, matrices):
-    return InstancedKey(tuple(mesh_keys), instances_digest(mesh_index, matrices))
-
-
-def is_two_level(tree):
-    """Whether `tree` is a two-level build (a bsplab.InstancedTree), told
-    without importing bsplab."""
-    return tree is not None and hasattr(tree, "mesh_index") and hasattr(tree, "flatten")
+def instanced_key(geometry, method, options):
+    """The InstancedKey of a two-level build of `geometry` (an
+    InstancedGeometry: the unique meshes, each instance's mesh and matrix)
+    with `method` and `options`: each mesh's TreeKey, in mesh order, and
+    the instances' digest."""
+    return InstancedKey(tuple(tree_key(mesh, method, options) for mesh in geometry.meshes),
+                        instances_digest(geometry.mesh_index, geometry.matrices))
 
 
 class _Slot:
@@ -152,24 +151,20 @@ class TreeCache:
 
     def tree(self, key):
         """The kept tree if it was built for `key`; else None, and the kept
-        tree is forgotten, so that two trees are never held together. A flat
-        key (TreeKey) also forgets the mesh trees of a two-level build."""
+        tree is forgotten, so that two trees are never held together, with
+        the mesh trees `key` does not need (all of them for a flat TreeKey;
+        an InstancedKey's own meshes stay for the build to re-use)."""
+        needed = set(key.meshes) if isinstance(key, InstancedKey) else set()
         with self._lock:
-            if not isinstance(key, InstancedKey):
-                self._mesh_trees = {}
-            return self._tree.get(key)
+            tree = self._tree.get(key)
+            if tree is None:
+                self._mesh_trees = {k: t for k, t in self._mesh_trees.items() if k in needed}
+            return tree
 
-    def keep_only_mesh_trees(self, keys):
-        """Forget the mesh trees whose keys are not in `keys` (before a
-        two-level build that needs only those)."""
-        keys = set(keys)
+    def mesh_trees(self, keys):
+        """{key: tree} of the kept mesh trees among `keys`."""
         with self._lock:
-            self._mesh_trees = {k: t for k, t in self._mesh_trees.items() if k in keys}
-
-    def mesh_tree(self, key):
-        """The kept mesh tree of `key`, or None."""
-        with self._lock:
-            return self._mesh_trees.get(key)
+            return {key: self._mesh_trees[key] for key in keys if key in self._mesh_trees}
 
     def keep_mesh_tree(self, key, tree, generation):
         with self._lock:
