@@ -111,26 +111,41 @@ def test_every_ray_missing_is_a_user_error():
         messages.check_result(job.result)
 
 
-def test_cancel_mid_way_ends_the_job_cancelled():
-    tris = scenes.generate("spheres")
-    job = jobs.Job(bsplab, _input(tris, scenes.default_camera("spheres"), width=1600,
-                                  height=1200, mode="heat_tests", threads=1,
-                                  compare_with_embree=False))
-    # Cancel once the tree is built, while the (large) render runs.
-    built = threading.Event()
+def _cancel_once_rendering(job):
+    """Starts `job` and, from another thread, cancels it while its render
+    runs: the render's third chunk of rays waits for the cancel (the core's
+    Progress.hold_at_check), so the job cannot have finished first, however
+    fast or loaded the machine. Returns (build, render) progress seen at
+    the cancel, or None when the job ended without reaching that chunk."""
+    job.render_progress.hold_at_check(3)
+    seen = []
 
-    def cancel_after_build():
-        while job.is_alive() and job.build_progress.value < 1.0:
+    def cancel():
+        while job.is_alive() and not job.render_progress.held:
             threading.Event().wait(0.001)
-        built.set()
+        if job.render_progress.held:
+            seen.append((job.build_progress.value, job.render_progress.value))
         job.cancel()
 
     job.start()
-    canceller = threading.Thread(target=cancel_after_build)
+    canceller = threading.Thread(target=cancel)
     canceller.start()
     job.join(60.0)
     canceller.join(60.0)
-    assert built.is_set() and not job.is_alive(), "the job did not stop after cancel()"
+    assert not job.is_alive() and not canceller.is_alive(), "the job did not stop after cancel()"
+    return seen[0] if seen else None
+
+
+def test_cancel_mid_way_ends_the_job_cancelled():
+    tris = scenes.generate("spheres")
+    job = jobs.Job(bsplab, _input(tris, scenes.default_camera("spheres"), width=160,
+                                  height=120, mode="heat_tests", threads=1,
+                                  compare_with_embree=False))
+    # Cancelled once the tree is built, while the render runs.
+    seen = _cancel_once_rendering(job)
+    assert seen is not None, job.error
+    built, rendered = seen
+    assert built == 1.0 and 0.0 < rendered < 1.0
     assert job.result is None and job.render_progress.value < 1.0  # the render was cut short
     assert isinstance(job.error, bsplab.Cancelled), job.error
     assert "cancelled" in worker.error_message(bsplab, job.error)
@@ -361,21 +376,12 @@ def test_cancel_during_a_reused_render_keeps_the_tree(scene):
     tris, cam = scene
     cache = tree_cache.TreeCache()
     small = _run_cached(cache, _input(tris, cam, options=KD_OPTIONS, compare_with_embree=False))
-    big = jobs.Job(bsplab, _input(tris, cam, width=1600, height=1200, mode="heat_tests",
+    big = jobs.Job(bsplab, _input(tris, cam, width=160, height=120, mode="heat_tests",
                                   threads=1, options=KD_OPTIONS, compare_with_embree=False),
                    cache=cache)
-
-    def cancel_once_rendering():
-        while big.is_alive() and big.render_progress.value == 0.0:
-            threading.Event().wait(0.001)
-        big.cancel()
-
-    big.start()
-    canceller = threading.Thread(target=cancel_once_rendering)
-    canceller.start()
-    big.join(60.0)
-    canceller.join(60.0)
-    assert not big.is_alive() and big.reused
+    seen = _cancel_once_rendering(big)
+    assert seen is not None, big.error
+    assert big.reused and seen[0] == 0.0  # no build ran
     assert isinstance(big.error, bsplab.Cancelled), big.error
     assert big.result is None and big.render_progress.value < 1.0
     # Still kept, and the next press re-uses it.

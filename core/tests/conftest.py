@@ -5,8 +5,10 @@ imports the sanitized core."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +27,31 @@ def load_scene(scene_id: str) -> np.ndarray:
     if kind == "gen":
         return scenes.generate(name)
     return io.load_mesh(workloads.shared_scenes_dir() / f"{name}.ply")
+
+
+@contextlib.contextmanager
+def cancelled_once_held(progress):
+    """Cancels `progress` from another thread once the work it was given
+    waits at the check `progress.hold_at_check(n)` named, so the cancel
+    meets work that has provably not finished, whatever the machine's speed
+    or load. Yields a list that gets the progress value seen there (empty
+    when the work ended without reaching that check)."""
+    seen, finished = [], threading.Event()
+
+    def watch():
+        while not progress.held and not finished.is_set():
+            finished.wait(0.001)
+        if progress.held:
+            seen.append(progress.value)
+            progress.cancel()
+
+    watcher = threading.Thread(target=watch)
+    watcher.start()
+    try:
+        yield seen
+    finally:
+        finished.set()
+        watcher.join()
 
 
 @pytest.fixture(params=SCENE_IDS)

@@ -10,7 +10,6 @@ test_paths_agree.py, test_fuzz.py.)"""
 from __future__ import annotations
 
 import hashlib
-import threading
 
 import numpy as np
 import pytest
@@ -18,6 +17,7 @@ import pytest
 import bsplab
 from bsplab import agreement, fuzz, oracle, scenes
 from bsplab.tree import COUNTERS, KINDS
+from conftest import cancelled_once_held
 
 embreex = pytest.importorskip("embreex", reason="embreex is the oracle")
 
@@ -170,14 +170,13 @@ def test_cancel_and_progress():
     p.cancel()
     with pytest.raises(bsplab.Cancelled):
         bsplab.build(tris, "bvh", progress=p)
-    # Cancelled from another thread while it builds.
+    # Cancelled from another thread while it builds: its 50th node waits
+    # for the cancel, so the build cannot have finished first.
     p = bsplab.Progress()
-    timer = threading.Timer(0.01, p.cancel)
-    timer.start()
-    with pytest.raises(bsplab.Cancelled):
-        for _ in range(50):
-            bsplab.build(tris, "bvh", progress=p, threads=2)
-    timer.join()
+    p.hold_at_check(50)
+    with cancelled_once_held(p) as seen, pytest.raises(bsplab.Cancelled):
+        bsplab.build(tris, "bvh", progress=p, threads=2)
+    assert len(seen) == 1 and seen[0] < 1 and p.value < 1
 
 
 def test_bad_input():

@@ -9,7 +9,6 @@ import re
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -39,40 +38,42 @@ def message_pattern(method: str, limit) -> str:
 @pytest.mark.parametrize("method", ["kd", "bsp_wn+kd"])
 def test_limit_stops_the_build_early_with_a_message(method):
     tris = soup(20_000, length=0.3)
-    start = time.perf_counter()
+    progress = bsplab.Progress()
     with pytest.raises(MemoryError, match=message_pattern(method, 12)) as info:
-        bsplab.build(tris, method=method, memory_limit_mb=12, **GREEDY)
-    elapsed = time.perf_counter() - start
+        bsplab.build(tris, method=method, memory_limit_mb=12, progress=progress, **GREEDY)
     text = str(info.value)
     # It says where it stopped and that it needed more than the limit.
     assert re.search(r"it needed at least [\d.]+ MB when it stopped at depth \d+ \(", text), text
     needed = float(re.search(r"at least ([\d.]+) MB", text).group(1))
     assert 12 <= needed < 12 * 1.5, text
     assert "raise memory_limit_mb" in text
-    # Unlimited, this build runs for minutes and takes gigabytes (and several
-    # times longer under the sanitizers, which also run this test).
-    assert elapsed < 20 * (4 if "libasan" in os.environ.get("LD_PRELOAD", "") else 1), elapsed
+    # Unlimited, this build runs for minutes and takes gigabytes: stopped at
+    # the limit (what it counted, above), it is far from done.
+    assert progress.value < 1, progress.value
 
 
 def test_the_triangles_alone_can_exceed_the_limit():
+    """Checked before the build starts: not one node of the tree is made."""
     tris = soup(100_000)
-    start = time.perf_counter()
     for limit in (1, 2, 3):
+        progress = bsplab.Progress()
         with pytest.raises(MemoryError, match=r"\(the triangles: 3\.\d+ MB more\)"):
-            bsplab.build(tris, memory_limit_mb=limit, **GREEDY)
-    assert time.perf_counter() - start < 2.0
+            bsplab.build(tris, memory_limit_mb=limit, progress=progress, **GREEDY)
+        assert progress.value == 0.0
 
 
 @pytest.mark.parametrize("method", ["kd", "bsp_wn+kd", "bsp_ize+kd"])
 def test_small_limits_raise_before_the_build_is_done(method):
     """Limits of 1-8 MB on 100k triangles stop in the first levels, far
-    sooner than the (greedy) build would take to finish."""
+    from the end of the (greedy) build: before any leaf is made (the root's
+    own lists already exceed them)."""
     tris = soup(100_000, length=0.3)
     for limit in (1, 4, 6, 8):
-        start = time.perf_counter()
+        progress = bsplab.Progress()
         with pytest.raises(MemoryError, match=message_pattern(method, limit)):
-            bsplab.build(tris, method=method, memory_limit_mb=limit, **GREEDY)
-        assert time.perf_counter() - start < 10.0, (limit, time.perf_counter() - start)
+            bsplab.build(tris, method=method, memory_limit_mb=limit, progress=progress,
+                         **GREEDY)
+        assert progress.value == 0.0, limit
 
 
 def test_the_finished_tree_check_reads_like_the_others():
@@ -128,7 +129,7 @@ def test_default_limit_leaves_normal_builds_alone():
 
 
 PROBE = r"""
-import json, sys, time
+import json, sys
 import numpy as np
 import bsplab
 sys.path.insert(0, {tests!r})
@@ -142,13 +143,13 @@ def status(key):
 tris = soup({n}, length={length})
 open("/proc/self/clear_refs", "w").write("5")  # VmHWM := VmRSS
 base = status("VmRSS")
-start = time.perf_counter()
+progress = bsplab.Progress()
 try:
-    bsplab.build(tris, method={method!r}, memory_limit_mb={limit}, **GREEDY)
+    bsplab.build(tris, method={method!r}, memory_limit_mb={limit}, progress=progress, **GREEDY)
     error = None
 except MemoryError as e:
     error = str(e)
-print(json.dumps({{"seconds": time.perf_counter() - start, "error": error,
+print(json.dumps({{"done": progress.value, "error": error,
                    "growth_mb": (status("VmHWM") - base) / 2**20}}))
 """
 
@@ -167,11 +168,11 @@ def probe(n, method, limit, length=1.0) -> dict:
 @pytest.mark.parametrize("method, n, length, limit", [("kd", 200_000, 1.0, 100),
                                                       ("bsp_wn+kd", 20_000, 0.3, 16)])
 def test_process_memory_stays_near_the_limit(method, n, length, limit):
-    """The process grows by about the limit, not by gigabytes, and stops
-    quickly: the issue's probe (the kd build of the 200k soup) grew by 6.2 GB
-    over 87 s when the limit was only checked on the finished tree; now it
-    stops after about 100 MB and 1.5 s."""
+    """The process grows by about the limit, not by gigabytes, and the build
+    stops unfinished: the issue's probe (the kd build of the 200k soup) grew
+    by 6.2 GB over 87 s when the limit was only checked on the finished tree;
+    now it stops after about 100 MB (1.5 s on the 2-core machine)."""
     r = probe(n, method, limit, length)
     assert r["error"] and r["error"].startswith(f"{method} build needs more than {limit} MB"), r
     assert r["growth_mb"] < limit * 1.25 + 5, r
-    assert r["seconds"] < 30, r
+    assert r["done"] < 1, r

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import threading
-import time
-
 import numpy as np
 import pytest
 
 import bsplab
 from bsplab import scenes, workloads
+from conftest import cancelled_once_held
 
 
 @pytest.fixture(scope="module")
@@ -75,41 +73,23 @@ def test_cancel_from_another_thread_stops_a_render():
     tree = bsplab.build(tris)
     cam = scenes.default_camera("spheres")
     p = bsplab.Progress()
-    seen = []
-
-    def watch():
-        while p.value == 0.0:
-            time.sleep(0.001)
-        seen.append(p.value)
-        p.cancel()
-
-    w = threading.Thread(target=watch)
-    w.start()
-    with pytest.raises(bsplab.Cancelled):
-        bsplab.render(tree, cam, 2000, 2000, threads=1, progress=p)
-    w.join()
-    assert 0 < seen[0] < 1
+    p.hold_at_check(3)  # the render's third chunk of rays waits for the cancel
+    with cancelled_once_held(p) as seen, pytest.raises(bsplab.Cancelled):
+        bsplab.render(tree, cam, 128, 128, threads=1, progress=p)
+    assert len(seen) == 1 and 0 < seen[0] < 1  # two chunks traced, the rest not
 
 
 def test_gil_is_released_during_a_build():
+    """A Python thread runs while a build is under way: the build waits at
+    one of its checks until that thread cancels it. Were the GIL held, the
+    thread could not run; the build would go on after the hold's limit and
+    end without being cancelled."""
     tris = scenes.generate("spheres")
-    ticks = []
-    stop = threading.Event()
-
-    def tick():
-        while not stop.is_set():
-            ticks.append(1)
-            time.sleep(0.0005)
-
-    t = threading.Thread(target=tick)
-    t.start()
-    start = time.perf_counter()
-    bsplab.build(tris, threads=1)
-    took = time.perf_counter() - start
-    stop.set()
-    t.join()
-    # Were the GIL held for the whole build, the ticker could not run at all.
-    assert len(ticks) > min(5, took / 0.002)
+    p = bsplab.Progress()
+    p.hold_at_check(5)
+    with cancelled_once_held(p) as seen, pytest.raises(bsplab.Cancelled):
+        bsplab.build(tris, threads=1, progress=p)
+    assert len(seen) == 1 and seen[0] < 1
 
 
 def test_methods_table():
