@@ -256,10 +256,13 @@ def print_report_and_exit(tag, main, *args):
 
 def start_gui_check(tick):
     """A GUI check's start: bsplab on the path, the add-on registered, and
-    `tick` (the check's steps) on a timer once the window is up."""
+    `tick` (the check's steps) on a timer, which runs once the window is
+    up. No splash screen over the window: a --python script runs before
+    Blender opens it, and the factory settings' preferences are not saved."""
+    bpy.context.preferences.view.show_splash = False
     add_core_paths()
     load_addon().register()
-    bpy.app.timers.register(tick, first_interval=2.0)
+    bpy.app.timers.register(tick, first_interval=0.1)
 
 
 
