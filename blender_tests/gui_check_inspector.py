@@ -1,5 +1,5 @@
-"""The ray inspector in a real Blender window (run by run_all.sh with
-BSPLAB_GUI_CHECK=1; needs Xvfb, xdotool and ImageMagick's `import`).
+"""The ray inspector in a real Blender window (run by run_all.sh unless
+BSPLAB_GUI_CHECK=0; needs Xvfb, xdotool and ImageMagick's `import`).
 
     xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \\
         --python blender_tests/gui_check_inspector.py -- OUT_DIR

@@ -4,7 +4,7 @@
         --python blender_tests/gui_check_overlay.py -- OUT_DIR [DOCS_IMAGE]
 
 Needs ImageMagick's `import` (the screenshots are read back as PPM: no PIL
-in Blender's Python). run_all.sh runs it when BSPLAB_GUI_CHECK=1. Exits 0
+in Blender's Python). run_all.sh runs it unless BSPLAB_GUI_CHECK=0. Exits 0
 when every check passed; writes OUT_DIR/gui_check_overlay.json.
 
 1. Colours: a small scene (two boxes at opposite corners), Build &
