@@ -218,7 +218,7 @@ def step():
 
 
 def main():
-    utils.start_gui_check(tick)
+    utils.start_gui_check(tick, report)
 
 
 main()

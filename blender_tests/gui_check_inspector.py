@@ -269,7 +269,7 @@ def main():
     if shutil.which("xdotool") is None or shutil.which("import") is None:
         print("gui_check_inspector: needs xdotool and ImageMagick's import")
         os._exit(1)
-    utils.start_gui_check(tick)
+    utils.start_gui_check(tick, report)
 
 
 main()

@@ -349,7 +349,7 @@ def tick():
 
 
 def main():
-    utils.start_gui_check(tick)
+    utils.start_gui_check(tick, report)
 
 
 main()

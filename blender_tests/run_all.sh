@@ -132,6 +132,7 @@ lap "suite: $BLENDER_VERSION (with its apt install)"
 GUI_CHECKS="gui_check gui_check_compare gui_check_inspector gui_check_overlay"
 
 run_gui_checks() {  # NAME DEPS OUT [RUNNER]: the four checks on RUNNER's blender
+    # (BSPLAB_GUI_EXTENSION_ZIP: with the zip installed, bsplab_test_utils.start_gui_check)
     local name="$1" deps="$2" out="$3" runner="${4:-}" check rc
     rm -rf "$out"
     for check in $GUI_CHECKS; do
@@ -184,7 +185,11 @@ record "$BLENDER13_VERSION" "${PIPESTATUS[0]}"
 rm -rf "$USER_DIR"
 lap "suite: $BLENDER13_VERSION"
 if [ "${BSPLAB_GUI_CHECK:-1}" != 0 ]; then
-    run_gui_checks "$BLENDER13_VERSION" "$DEPS313" "$REPO/build/gui_check_debian13" "$IN13"
+    # Through the extension path: each check installs the zip in its empty
+    # user folder and runs the installed add-on, its core from the zip's
+    # wheels (no BSPLAB_PYTHONPATH).
+    BSPLAB_GUI_EXTENSION_ZIP="$ZIP" \
+        run_gui_checks "$BLENDER13_VERSION, the extension" "" "$REPO/build/gui_check_debian13" "$IN13"
 fi
 
 log "summary"
