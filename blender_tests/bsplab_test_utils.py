@@ -254,12 +254,37 @@ def print_report_and_exit(tag, main, *args):
     os._exit(0)
 
 
-def start_gui_check(tick):
-    """A GUI check's start: bsplab on the path, the add-on registered, and
-    `tick` (the check's steps) on a timer once the window is up."""
-    add_core_paths()
-    load_addon().register()
-    bpy.app.timers.register(tick, first_interval=2.0)
+# The installed extension's module (Blender 4.2+, the "user_default" repository).
+EXTENSION_MODULE = "bl_ext.user_default.bsplab"
+
+
+def use_extension(zip_path):
+    """The 4.2+ extension path: install the zip (its wheels bring the core)
+    and enable it; load_addon() then answers the installed module."""
+    result = bpy.ops.extensions.package_install_files(
+        filepath=zip_path, repo="user_default", enable_on_install=True)
+    assert result == {'FINISHED'}, result
+    sys.modules[ADDON_MODULE] = importlib.import_module(EXTENSION_MODULE)
+
+
+def start_gui_check(tick, report):
+    """A GUI check's start: the add-on registered from the source tree with
+    bsplab on the path, or with BSPLAB_GUI_EXTENSION_ZIP the extension zip
+    installed and enabled (use_extension); then `tick` (the check's steps)
+    on a timer, which runs once the window is up. No splash screen over the
+    window: a --python script runs before Blender opens it, and the factory
+    settings' preferences are not saved. The report says which add-on and
+    which core the check ran."""
+    bpy.context.preferences.view.show_splash = False
+    zip_path = os.environ.get("BSPLAB_GUI_EXTENSION_ZIP")
+    if zip_path:
+        use_extension(zip_path)
+    else:
+        add_core_paths()
+        load_addon().register()
+    import bsplab
+    report.update(addon=load_addon().__file__, core=bsplab.__file__)
+    bpy.app.timers.register(tick, first_interval=0.1)
 
 
 

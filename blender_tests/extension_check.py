@@ -38,6 +38,9 @@ def main(zip_path):
     scene.bsplab.compare_with_embree = True
     bpy.ops.bsplab.build_render()
     out["embree"] = scene.bsplab.stats.get("embree")
+    # An Embree library this Blender exports (Debian 13's links libembree4)
+    # makes the add-on decline the comparison instead of crashing.
+    out["foreign_embree"] = bsplab.oracle.foreign_embree_library()
     return out
 
 

@@ -35,9 +35,12 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
+import gui_utils  # noqa: E402
 from gui_utils import areas  # noqa: E402
 
 OUT, EXTRA, report = utils.gui_check_output("/tmp/bsplab_gui_compare")
+WAITS = gui_utils.Waits()
+POLL = gui_utils.POLL_SECONDS
 DOCS = pathlib.Path(EXTRA[0]) if EXTRA else None
 
 B_METHOD, B_K = "bsp_wn+kd", 4
@@ -61,6 +64,7 @@ def show_preview():
     window, area = big_area()
     area.type = 'IMAGE_EDITOR'
     area.spaces.active.image = bpy.data.images["BSP Lab Preview"]
+    gui_utils.redraw_window()  # the new editor's regions laid out, for view_all
     region = next(r for r in area.regions if r.type == 'WINDOW')
     with bpy.context.temp_override(window=window, area=area, region=region):
         bpy.ops.image.view_all(fit_view=True)
@@ -74,7 +78,7 @@ def screenshot(name):
         return None
     window, area = big_area()
     path = OUT / (name + ".png")
-    subprocess.run(["import", "-window", "root", str(path)], check=True)
+    gui_utils.grab_screen(path)
     # Screen rows grow downwards, Blender's area.y upwards.
     top = window.height - (area.y + area.height)
     crop = "{}x{}+{}+{}".format(area.width, area.height, area.x, top)
@@ -140,7 +144,7 @@ def check_difference(addon):
 
 def finish():
     screen_ok = report.get("screen_line_present", True) and report.get("screen_diff_ok", True)
-    report["ok"] = bool(report.get("block_line_present") and report.get("trees_differ")
+    report["ok"] = "error" not in report and bool(report.get("block_line_present") and report.get("trees_differ")
                         and 0.0 < report.get("block_white_fraction", 0.0) < 1.0
                         and screen_ok and report.get("presses") == 2)
     (OUT / "gui_check_compare.json").write_text(json.dumps(report, indent=1))
@@ -152,6 +156,16 @@ state = {"phase": "start", "t0": 0.0, "presses": 0}
 
 
 def tick():
+    try:
+        return step()
+    except Exception:  # a failed step or a time-out ends the check with the reason
+        import traceback
+        report["error"] = traceback.format_exc()
+        finish()
+        return None
+
+
+def step():
     addon = utils.load_addon()
     job = addon.state.STATE.job
     phase = state["phase"]
@@ -169,40 +183,28 @@ def tick():
         compare = scene.bsplab_compare
         compare.enabled, compare.method = True, B_METHOD
         compare.k, compare.view = B_K, "split"
-        state["phase"] = "splash"
-        return 1.0
-    if phase == "splash":
-        # Close the splash screen: a click into the big area, away from it.
-        window, area = big_area()
-        subprocess.run(["xdotool", "mousemove", str(area.x + 40),
-                        str(window.height - (area.y + 40)), "click", "1"], check=False)
         state["phase"] = "press"
-        return 1.0
+        return POLL
     if phase == "press":
         report["events"].append("invoke -> {}".format(sorted(invoke())))
         state.update(phase="running", t0=time.time())
-        return 0.2
+        return POLL
     if phase == "running":
-        if job is not None:
-            if time.time() - state["t0"] > 120:
-                report["events"].append("still running after 120 s")
-                finish()
-            return 0.2
+        if not WAITS.until("Build & Render press {} to end".format(state["presses"] + 1),
+                           lambda: addon.state.STATE.job is None):
+            return POLL
         state["presses"] += 1
         report["presses"] = state["presses"]
         report["stats_b_method"] = scene.bsplab.stats.get("b", {}).get("build", {}).get("method")
         report.setdefault("grids", []).append(addon.build_render.statistics.compare_table(scene.bsplab.stats))
         show_preview()
-        state["phase"] = "shoot"
-        return 2.0  # let the editor redraw before the screenshot
-    if phase == "shoot":
         if scene.bsplab_compare.view == "split":
             check_split(addon)
             # Back to the 3D view for the second press: the difference map.
             big_area()[1].type = 'VIEW_3D'
             scene.bsplab_compare.view = "diff_steps"
             state["phase"] = "press"
-            return 1.0
+            return POLL
         check_difference(addon)
         finish()
         return None
@@ -210,7 +212,7 @@ def tick():
 
 
 def main():
-    utils.start_gui_check(tick)
+    utils.start_gui_check(tick, report)
 
 
 main()

@@ -1,5 +1,5 @@
-"""The ray inspector in a real Blender window (run by run_all.sh with
-BSPLAB_GUI_CHECK=1; needs Xvfb, xdotool and ImageMagick's `import`).
+"""The ray inspector in a real Blender window (run by run_all.sh unless
+BSPLAB_GUI_CHECK=0; needs Xvfb, xdotool and ImageMagick's `import`).
 
     xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \\
         --python blender_tests/gui_check_inspector.py -- OUT_DIR
@@ -20,9 +20,7 @@ import math
 import os
 import pathlib
 import shutil
-import subprocess
 import sys
-import time
 
 import bpy
 import numpy as np
@@ -30,9 +28,12 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import bsplab_test_utils as utils  # noqa: E402
-from gui_utils import click, grab_screen  # noqa: E402
+import gui_utils  # noqa: E402
+from gui_utils import grab_screen  # noqa: E402
 
 OUT, _, report = utils.gui_check_output("/tmp/bsplab_gui")
+WAITS = gui_utils.Waits()
+POLL = gui_utils.POLL_SECONDS
 SEARCH = 10  # pixels around a projected point searched for its colour
 
 
@@ -77,21 +78,29 @@ def to_window(region, point3d):
 
 
 def pick_at(point):
-    """Press the panel's Pick Ray (the modal eyedropper), then click at
-    window point `point`."""
+    """Press the panel's Pick Ray (the modal eyedropper: its handler is in
+    place when the call returns), then click at window point `point`; the
+    caller waits for the new inspection (`inspected_since`)."""
     window, area = area_of('VIEW_3D')
     ui = next(r for r in area.regions if r.type == 'UI')
+    state["inspection_before"] = utils.load_addon().state.STATE.inspection
     with bpy.context.temp_override(window=window, area=area, region=ui):
         result = bpy.ops.bsplab.inspect_pick('INVOKE_DEFAULT')
     report["events"].append("eyedropper -> {}".format(sorted(result)))
-    time.sleep(0.3)
-    click(window, *point)
+    gui_utils.click(window, *point)
+
+
+def picked(what):
+    """True once the click of pick_at made a new inspection (raises after
+    the time-out)."""
+    return WAITS.until(what, lambda: utils.load_addon().state.STATE.inspection
+                       not in (None, state["inspection_before"]))
 
 
 def finish():
     checks = ("pixel_pick_ok", "hit_matches_preview", "green_at_hit", "yellow_on_ray",
               "viewport_pick_ok", "missed_box", "yellow_on_missed_ray")
-    report["ok"] = all(report.get(name) for name in checks)
+    report["ok"] = all(report.get(name) for name in checks) and "error" not in report
     (OUT / "gui_check_inspector.json").write_text(json.dumps(report, indent=1))
     sys.stdout.flush()
     os._exit(0 if report["ok"] else 1)
@@ -114,16 +123,13 @@ def setup():
 
 
 def open_tab():
-    """Close the splash screen and open the sidebar's BSP Lab tab: the third
+    """Open the sidebar's BSP Lab tab (for the panel's screenshot): the third
     while no object is active (an active one adds the Item tab)."""
     window, area = area_of('VIEW_3D')
-    # Esc and a mouse move away: the splash screen goes however late it came.
-    subprocess.run(["xdotool", "mousemove", str(area.x + 200), str(window.height - area.y - 200),
-                    "key", "Escape", "sleep", "0.3", "mousemove", "5", "5"], check=False)
-    time.sleep(0.5)
     bpy.context.view_layer.objects.active = None
     ui = next(r for r in area.regions if r.type == 'UI')
-    click(window, ui.x + ui.width - 8, ui.y + ui.height - int(120 * bpy.context.preferences.view.ui_scale))
+    gui_utils.click(window, ui.x + ui.width - 8,
+                    ui.y + ui.height - int(120 * bpy.context.preferences.view.ui_scale))
 
 
 def preview_target(addon):
@@ -173,31 +179,43 @@ def check_drawing(addon):
 
 
 def tick():
+    try:
+        return step()
+    except Exception:  # a failed step or a time-out ends the check with the reason
+        import traceback
+        report["error"] = traceback.format_exc()
+        finish()
+        return None
+
+
+def step():
     addon = utils.load_addon()
     phase = state["phase"]
     if phase == "start":
         setup()
-        state["phase"] = "tab"
-        return 3.0
-    if phase == "tab":
+        gui_utils.redraw_window()  # the sidebar laid out: its tabs have their places
+        # For the panel's screenshot only, nothing asserted: the click is
+        # handled before the eyedropper of the next step starts.
         open_tab()
+        state["phase"] = "pick"
+        return POLL
+    if phase == "pick":
         assert bpy.ops.bsplab.build_render() == {'FINISHED'}
-        state["phase"] = "zoom"
-        return 2.0
-    if phase == "zoom":
+        # The Image Editor drawn with the preview: its view is set up.
+        gui_utils.redraw_window()
         # Four screen pixels a preview pixel: a click at a pixel's centre
         # cannot land on its neighbour by a rounding of the click.
         window, area = area_of('IMAGE_EDITOR')
         with bpy.context.temp_override(window=window, area=area, region=main_region(area)):
             bpy.ops.image.view_zoom_ratio(ratio=4.0)
-        state["phase"] = "pick"
-        return 1.0
-    if phase == "pick":
+        gui_utils.redraw_window()
         state["pixel"], point, state["prim"] = preview_target(addon)
         pick_at(point)
         state["phase"] = "picked"
-        return 1.0
+        return POLL
     if phase == "picked":
+        if not picked("the click on the preview pixel to be inspected"):
+            return POLL
         inspection = addon.state.STATE.inspection
         report["pixel"] = list(state["pixel"])
         report["source"] = inspection and inspection["source"]
@@ -209,7 +227,7 @@ def tick():
             report["pick_ms"] = round(1000 * inspection["seconds"], 2)
         side_view()
         state["phase"] = "look"
-        return 2.0
+        return POLL
     if phase == "look":
         if report["pixel_pick_ok"]:
             check_drawing(addon)
@@ -219,20 +237,14 @@ def tick():
         with bpy.context.temp_override(window=window, area=area, region=ui):
             for _ in range(3):
                 bpy.ops.view2d.scroll_down(page=True)
-        area.tag_redraw()
-        state["phase"] = "panel"
-        return 1.0
-    if phase == "panel":
         screenshot("inspector_panel")
-        state["phase"] = "viewport"
-        return 0.5
-    if phase == "viewport":
         # A click on the cube in the 3D view: the view's ray.
-        _, area = area_of('VIEW_3D')
         pick_at(to_window(main_region(area), (0.0, 0.0, 1.0)))
         state["phase"] = "viewport picked"
-        return 1.5
+        return POLL
     if phase == "viewport picked":
+        if not picked("the click in the 3D view to be inspected"):
+            return POLL
         inspection = addon.state.STATE.inspection
         report["viewport_pick_ok"] = bool(inspection) and inspection["source"] == "viewport" \
             and inspection["counts"]["hit_prim"] is not None
@@ -242,9 +254,6 @@ def tick():
         ray = ((0.0, -8.0, 6.0), (0.0, 1.0, 0.0))
         result = bpy.ops.bsplab.inspect_ray(origin=ray[0], direction=ray[1])
         report["events"].append("ray above the box -> {}".format(sorted(result)))
-        state["phase"] = "missed"
-        return 1.5
-    if phase == "missed":
         inspection = addon.state.STATE.inspection
         report["missed_box"] = bool(inspection) and inspection["missed_box"]
         pixels, _ = screenshot("inspector_missed")
@@ -260,7 +269,7 @@ def main():
     if shutil.which("xdotool") is None or shutil.which("import") is None:
         print("gui_check_inspector: needs xdotool and ImageMagick's import")
         os._exit(1)
-    utils.start_gui_check(tick)
+    utils.start_gui_check(tick, report)
 
 
 main()

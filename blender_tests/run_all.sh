@@ -6,6 +6,8 @@
 #   4. bpy 5.2.3 LTS  (Python 3.13: this machine's own 3.13, else the Debian 13
 #      root's, blender_env.sh's find_python313)
 #   5. Debian's Blender 3.4.1 binary (pytest inside Blender; the legacy add-on)
+#   6. Debian 13's Blender 4.3.2 binary in the Debian 13 root (pytest inside
+#      Blender, the extension installed from the zip; Python 3.13)
 #
 #   blender_tests/run_all.sh [PROJECT_PYTHON]
 #
@@ -24,8 +26,9 @@
 #   the zip alone brings the core;
 # - apt-installs Debian's blender, python3-numpy and python3-pytest unless
 #   they are already there;
-# - with BSPLAB_GUI_CHECK=1, also drives the modal operator (worker thread,
-#   progress, Esc) in a real Blender window under Xvfb (gui_check.py).
+# - runs the four GUI checks (gui_check*.py: the modal Build & Render with a
+#   real Esc, A/B, the ray inspector, the overlay) in a real window under
+#   Xvfb on both Debian Blenders (3.4 and 4.3); BSPLAB_GUI_CHECK=0 skips them.
 # Exits non-zero if any run fails.
 
 set -u -o pipefail
@@ -121,32 +124,79 @@ record "$BLENDER_VERSION" "${PIPESTATUS[0]}"
 rm -rf "$USER_DIR"
 lap "suite: $BLENDER_VERSION (with its apt install)"
 
-# --- optional: the modal operator in a real window ---------------------------
+# --- the GUI checks in a real window (Xvfb) ----------------------------------
 
-if [ "${BSPLAB_GUI_CHECK:-0}" = 1 ]; then
-    if ! command -v xvfb-run >/dev/null || ! command -v xdotool >/dev/null; then
-        log "installing xvfb and xdotool"
-        apt_install xvfb xdotool imagemagick || die "apt-get install xvfb failed"
+# Each check in its own Blender under Xvfb: the modal Build & Render (cancel
+# and K sweep), A/B, the ray inspector, the overlay. BSPLAB_GUI_CHECK=0 skips
+# them (a developer's quicker run); CI runs them.
+GUI_CHECKS="gui_check gui_check_compare gui_check_inspector gui_check_overlay"
+
+run_gui_checks() {  # NAME DEPS OUT [RUNNER]: the four checks on RUNNER's blender
+    # (BSPLAB_GUI_EXTENSION_ZIP: with the zip installed, bsplab_test_utils.start_gui_check)
+    local name="$1" deps="$2" out="$3" runner="${4:-}" check rc
+    rm -rf "$out"
+    for check in $GUI_CHECKS; do
+        log "$check on $name (Xvfb)"
+        # shellcheck disable=SC2086  # RUNNER is empty or one path
+        BSPLAB_PYTHONPATH="$deps" BLENDER_USER_RESOURCES="$(mktemp -d)" \
+            $runner xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \
+            --python "blender_tests/$check.py" -- "$out" > "$LOGS/$check.txt" 2>&1
+        rc=$?
+        cat "$out/$check.json" 2>/dev/null || tail -n 30 "$LOGS/$check.txt"
+        record "$check ($name, Xvfb)" "$rc"
+    done
+    lap "GUI checks: $name"
+}
+
+GUI_PACKAGES="xvfb xdotool imagemagick"
+if [ "${BSPLAB_GUI_CHECK:-1}" != 0 ]; then
+    if ! command -v xvfb-run >/dev/null || ! command -v xdotool >/dev/null \
+            || ! command -v import >/dev/null; then
+        log "installing $GUI_PACKAGES"
+        # shellcheck disable=SC2086
+        apt_install $GUI_PACKAGES || die "apt-get install $GUI_PACKAGES failed"
     fi
-    log "modal Build & Render in a window (Xvfb)"
-    GUI_OUT="$REPO/build/gui_check"
-    rm -rf "$GUI_OUT"
-    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" \
-        xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio \
-        --python blender_tests/gui_check.py -- "$GUI_OUT" > "$LOGS/gui.txt" 2>&1
-    rc=$?
-    cat "$GUI_OUT/gui_check.json" 2>/dev/null || tail -n 30 "$LOGS/gui.txt"
-    record "GUI check ($BLENDER_VERSION, Xvfb)" "$rc"
-    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_compare.py -- "$GUI_OUT" > "$LOGS/gui_compare.txt" 2>&1; rc=$?; cat "$GUI_OUT/gui_check_compare.json" 2>/dev/null || tail -n 30 "$LOGS/gui_compare.txt"; record "GUI check A/B ($BLENDER_VERSION, Xvfb)" "$rc"
-    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_inspector.py -- "$GUI_OUT" > "$LOGS/gui_inspector.txt" 2>&1; record "GUI check, ray inspector (see $GUI_OUT/gui_check_inspector.json)" $?
-    BSPLAB_PYTHONPATH="$DEPS" BLENDER_USER_RESOURCES="$(mktemp -d)" xvfb-run -a -s "-screen 0 1600x900x24" blender --factory-startup -noaudio --python blender_tests/gui_check_overlay.py -- "$GUI_OUT/overlay" > "$LOGS/gui_overlay.txt" 2>&1; record "GUI overlay check ($BLENDER_VERSION, Xvfb)" "$?"
+    run_gui_checks "$BLENDER_VERSION" "$DEPS" "$REPO/build/gui_check"
+fi
+
+# --- Debian 13's Blender 4.3 binary (the extension path, in the Debian 13 root) --
+
+# Debian 13's own blender runs on the system Python 3.13: the core is the
+# cp312-abi3 wheel (build/blender-deps-313). In the root that
+# ensure_debian13_root makes (reused once there, as are its packages).
+ensure_debian13_root || die "could not make the Debian 13 root"
+IN13="$REPO/blender_tests/in_debian13.sh"
+if ! "$IN13" sh -c 'command -v blender && command -v xvfb-run && command -v xdotool && command -v import &&
+        /usr/bin/python3 -c "import numpy, pytest"' >/dev/null 2>&1; then
+    log "installing blender in the Debian 13 root"
+    # shellcheck disable=SC2086
+    "$IN13" env DEBIAN_FRONTEND=noninteractive sh -c "apt-get update -q &&
+        apt-get install -y -q blender python3-numpy python3-pytest $GUI_PACKAGES" \
+        || die "apt-get install blender in the Debian 13 root failed"
+fi
+lap "set-up: Debian 13's blender (installed when missing)"
+BLENDER13_VERSION="$("$IN13" blender --version 2>/dev/null | head -n 1) (Debian 13)"
+log "pytest inside $BLENDER13_VERSION"
+USER_DIR="$(mktemp -d)"
+BSPLAB_PYTHONPATH="$DEPS313" BLENDER_USER_RESOURCES="$USER_DIR" \
+    "$IN13" blender --background --factory-startup -noaudio --python-exit-code 1 \
+    --python blender_tests/run_in_blender.py 2>&1 | tee "$LOGS/blender13.log"
+record "$BLENDER13_VERSION" "${PIPESTATUS[0]}"
+rm -rf "$USER_DIR"
+lap "suite: $BLENDER13_VERSION"
+if [ "${BSPLAB_GUI_CHECK:-1}" != 0 ]; then
+    # Through the extension path: each check installs the zip in its empty
+    # user folder and runs the installed add-on, its core from the zip's
+    # wheels (no BSPLAB_PYTHONPATH).
+    BSPLAB_GUI_EXTENSION_ZIP="$ZIP" \
+        run_gui_checks "$BLENDER13_VERSION, the extension" "" "$REPO/build/gui_check_debian13" "$IN13"
 fi
 
 log "summary"
 printf '  %s\n' "${RESULTS[@]}"
 echo "time of each part:"
 printf '  %s\n' "${TIMES[@]}"
-# One closing line over the five runs (a failed run may have no counts:
+# One closing line over the six runs (a failed run may have no counts:
 # STATUS is what decides).
 FAILED=$(( $(count failed) + $(count error) ))
 [ "$STATUS" -eq 0 ] || [ "$FAILED" -gt 0 ] || FAILED=1
