@@ -287,6 +287,20 @@ def start_gui_check(tick, report):
     bpy.app.timers.register(tick, first_interval=0.1)
 
 
+def reporting_failures(step, report, finish):
+    """A GUI check's timer function: `step()` (its return value is the
+    timer's next interval, None to stop); a failed step or a time-out ends
+    the check through `finish()` with the traceback in report["error"]."""
+    def tick():
+        try:
+            return step()
+        except Exception:
+            import traceback
+            report["error"] = traceback.format_exc()
+            finish()
+            return None
+    return tick
+
 
 def script_args():
     """The arguments after Blender's "--": the script's own ([] without)."""

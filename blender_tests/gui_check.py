@@ -92,16 +92,6 @@ state = {"phase": "start", "t0": 0.0}
 POLL = gui_utils.POLL_SECONDS
 
 
-def tick():
-    try:
-        return step()
-    except Exception:  # a failed step or a time-out ends the check with the reason
-        import traceback
-        report["error"] = traceback.format_exc()
-        finish()
-        return None
-
-
 def step():
     addon = utils.load_addon()
     job = addon.state.STATE.job
@@ -218,7 +208,7 @@ def step():
 
 
 def main():
-    utils.start_gui_check(tick, report)
+    utils.start_gui_check(utils.reporting_failures(step, report, finish), report)
 
 
 main()

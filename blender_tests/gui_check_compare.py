@@ -155,16 +155,6 @@ def finish():
 state = {"phase": "start", "t0": 0.0, "presses": 0}
 
 
-def tick():
-    try:
-        return step()
-    except Exception:  # a failed step or a time-out ends the check with the reason
-        import traceback
-        report["error"] = traceback.format_exc()
-        finish()
-        return None
-
-
 def step():
     addon = utils.load_addon()
     job = addon.state.STATE.job
@@ -212,7 +202,7 @@ def step():
 
 
 def main():
-    utils.start_gui_check(tick, report)
+    utils.start_gui_check(utils.reporting_failures(step, report, finish), report)
 
 
 main()

@@ -178,16 +178,6 @@ def check_drawing(addon):
     report["yellow_on_ray"] = all(n >= 5 for n in yellow) and yellow
 
 
-def tick():
-    try:
-        return step()
-    except Exception:  # a failed step or a time-out ends the check with the reason
-        import traceback
-        report["error"] = traceback.format_exc()
-        finish()
-        return None
-
-
 def step():
     addon = utils.load_addon()
     phase = state["phase"]
@@ -269,7 +259,7 @@ def main():
     if shutil.which("xdotool") is None or shutil.which("import") is None:
         print("gui_check_inspector: needs xdotool and ImageMagick's import")
         os._exit(1)
-    utils.start_gui_check(tick, report)
+    utils.start_gui_check(utils.reporting_failures(step, report, finish), report)
 
 
 main()
