@@ -31,8 +31,11 @@ INT_PROPERTY_MAX = 2**31 - 1
 
 def _panel_order(schema):
     """The BSP family's options first (what differs between methods), then
-    the common ones, each group in the registry's order."""
-    names = [name for name in schema if name not in HIDDEN_OPTIONS]
+    the common ones, each group in the registry's order. Not the "top"
+    group's: they set a two-level build's top level, no method's tree, and a
+    two-level press builds its top level at their registry defaults."""
+    names = [name for name in schema
+             if name not in HIDDEN_OPTIONS and schema[name]["group"] != "top"]
     return tuple(sorted(names, key=lambda name: schema[name]["group"] != "bsp"))
 
 

@@ -219,7 +219,7 @@ def inspect_two_level(tree, origin, direction, source, names=((), ())):
     and the viewport show. `names` are the build's (instance names, mesh
     names), for the panel.
 
-    InstancedTree.trace_path replays the core's walk: the top level's node
+    InstancedTree.trace_path records the core's walk: the top level's node
     visits (boxes, in world units), then, at each top leaf, the instances
     whose mesh tree the ray entered, each with its mesh tree's own
     trace_path of the ray carried to the instance's object space. That ray

@@ -8,23 +8,17 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core, checks
+from .method_table import OPTIONS, TOP_OPTIONS
 from .tree import COUNTERS, Tree, build
 
 # The instanced trace's counters beyond a tree's (COUNTERS, which here hold
 # the bottom trees' sums over the instances entered): the top level's node
 # visits and the instances whose tree the ray entered.
 TOP_COUNTERS = ("top_steps", "instance_visits")
-# The top level's options and their defaults (the core's TopLevelSettings):
-# centroid bins per axis, the cost of a top node visit and of an instance
-# (a whole bottom trace: several box steps, hence more than a triangle's).
 # The transform's rounding in the oracle's tolerance (transform_slack): half
 # an ulp of the object-space origin and direction each, carried back by the
 # matrix - bounded with room to spare.
 TRANSFORM_ULPS = 4.0
-# The top level's crossing bound (instanced_traverse.cpp's kCrossSlack), which
-# trace_path's replay of the walk uses too.
-TOP_CROSS_SLACK = 2.0 ** -21
-TOP_OPTIONS = {"top_bins": 16, "top_traversal_cost": 1.0, "top_intersect_cost": 4.0}
 
 
 def _matrices(value, n: int | None) -> np.ndarray:
@@ -157,115 +151,21 @@ class InstancedTree:
 
     def trace_path(self, origin, direction, tmin=0.0, tmax=np.inf) -> dict:
         """One ray's walk through both levels, as intersect() traces it: the
-        same hit bit for bit ("t", "prim", "u", "v", "instance") and counts
-        ("top_steps", "instance_visits", and the bottom trees' "steps",
-        "tests", "box_tests", ...). "top": per top-level node visited, in
-        order, "node", "t_range" and "box_lo", "box_hi" (world units);
-        "instances": per instance entered, in order, {"instance", "mesh",
-        "origin", "direction" (the ray in object space), "path" (the mesh
-        tree's Tree.trace_path of it)}. The walk is the core's, replayed
-        here from its arrays (the same double-precision arithmetic)."""
-        import math
-
+        same hit bit for bit ("t", "prim", "u", "v", "instance", "flat_prim")
+        and counts ("top_steps", "instance_visits", and the bottom trees'
+        "steps", "tests", "box_tests", ...). "top": per top-level node
+        visited, in order, "node", "t_range" and "box_lo", "box_hi" (world
+        units); "instances": per instance entered, in order, {"instance",
+        "mesh", "origin", "direction" (the ray in object space), "path" (the
+        mesh tree's Tree.trace_path of it)}. The core's own walk (the
+        single-ray trace's, recording), not a replay of it."""
         from .tree import _finite_vector
-        o32 = _finite_vector(origin, "origin")
-        d32 = _finite_vector(direction, "direction")
-        if not d32.any():
+        o = _finite_vector(origin, "origin")
+        d = _finite_vector(direction, "direction")
+        if not d.any():
             raise ValueError("direction must not be zero")
-        lo32, hi32 = (np.float32(x[0]) for x in checks.ray_ranges(tmin, tmax, 1))
-        a = self._top()
-        o = [float(x) for x in o32]
-        d = [float(x) for x in d32]
-        f32 = np.float32
-        # The core's top-level test (instanced_traverse.cpp's TopRay), in the
-        # same float32 arithmetic, operation by operation.
-        scene_max = f32(np.abs(np.concatenate([a["lo"][0], a["hi"][0]])).max()) \
-            if len(a["lo"]) else f32(0)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            inv = [f32(1) / x for x in d32]
-            err = [f32(0) if d32[k] == 0 else
-                   f32(f32(TOP_CROSS_SLACK) * f32(scene_max + abs(o32[k]))) * abs(inv[k])
-                   for k in range(3)]
-        neg = [bool(np.signbit(x)) for x in d32]
-
-        def clip(node, t0, t1):
-            """The entry and exit of box `node` within [t0, t1] (float32)."""
-            enter, negexit = f32(t0), f32(-f32(t1))
-            with np.errstate(invalid="ignore", over="ignore"):
-                for k in range(3):
-                    lo, hi = a["lo"][node, k], a["hi"][node, k]
-                    near, far = (hi, lo) if neg[k] else (lo, hi)
-                    tn = f32(f32(f32(near - o32[k]) * inv[k]) - err[k])
-                    tf = f32(f32(f32(far - o32[k]) * f32(-inv[k])) - err[k])
-                    if tn > enter:
-                        enter = tn
-                    if tf > negexit:
-                        negexit = tf
-            return enter <= -negexit, enter, f32(-negexit)
-
-        best = {"t": hi32, "prim": -1, "u": np.float32(0), "v": np.float32(0),
-                "instance": -1, "flat": None}
-        counts = dict.fromkeys(COUNTERS, 0)
-        top_rows, visits = [], []
-        stack = []
-        if len(a["lo"]):
-            ok, t0, t1 = clip(0, lo32, hi32)
-            if ok:
-                stack.append((0, t0, t1))
-        while stack:
-            node, t0, t1 = stack.pop()
-            if t0 > best["t"]:
-                continue
-            top_rows.append((node, float(t0), float(t1)))
-            if not a["leaf"][node]:
-                left = int(a["first"][node])
-                ha, a0, a1 = clip(left, lo32, best["t"])
-                hb, b0, b1 = clip(left + 1, lo32, best["t"])
-                if ha and hb:
-                    first = a0 <= b0
-                    stack.append((left + 1, b0, b1) if first else (left, a0, a1))
-                    stack.append((left, a0, a1) if first else (left + 1, b0, b1))
-                elif ha or hb:
-                    stack.append((left, a0, a1) if ha else (left + 1, b0, b1))
-                continue
-            for k in range(int(a["count"][node])):
-                inst = int(a["order"][int(a["first"][node]) + k])
-                m = a["object_from_world"][inst]
-                ob64 = np.array([m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2]
-                                 + m[4 * r + 3] for r in range(3)], np.float64)
-                db64 = np.array([m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2]
-                                 for r in range(3)], np.float64)
-                big = np.finfo(np.float32).max
-                if (np.abs(ob64) > big).any() or (np.abs(db64) > big).any():
-                    continue  # no float ray in object space (the core skips it too)
-                ob, db = ob64.astype(np.float32), db64.astype(np.float32)
-                if not db.any():
-                    continue
-                limit = hi32 if best["prim"] < 0 else np.nextafter(best["t"], np.float32(np.inf))
-                mesh = int(self.mesh_index[inst])
-                path = self.meshes[mesh].trace_path(ob, db, float(lo32), float(limit))
-                visits.append({"instance": inst, "mesh": mesh, "origin": ob, "direction": db,
-                               "path": path})
-                for c in COUNTERS:
-                    counts[c] += int(path[c])
-                if path["prim"] < 0:
-                    continue
-                t = np.float32(path["t"])
-                flat = int(self.flat_offsets[inst]) + int(path["prim"])
-                if t < best["t"] or (t == best["t"] and flat < best["flat"]):
-                    best.update(t=t, prim=int(path["prim"]), u=np.float32(path["u"]),
-                                v=np.float32(path["v"]), instance=inst, flat=flat)
-        rows = np.array([r[0] for r in top_rows], np.int64)
-        hit = best["prim"] >= 0
-        return {
-            "t": float(best["t"]) if hit else math.inf, "prim": best["prim"],
-            "u": float(best["u"]) if hit else 0.0, "v": float(best["v"]) if hit else 0.0,
-            "instance": best["instance"], "flat_prim": best["flat"] if hit else -1,
-            "top_steps": len(top_rows), "instance_visits": len(visits), **counts,
-            "top": {"node": rows, "t_range": np.array([r[1:] for r in top_rows]).reshape(-1, 2),
-                    "box_lo": a["lo"][rows], "box_hi": a["hi"][rows]},
-            "instances": visits,
-        }
+        lo, hi = (float(x[0]) for x in checks.ray_ranges(tmin, tmax, 1))
+        return _core.trace_path_instanced(self._scene, o, d, lo, hi)
 
     def _instance(self, instance) -> int:
         return checks.number(instance, "instance", low=0, high=len(self.mesh_index) - 1,
@@ -453,7 +353,7 @@ def build_instanced(meshes, mesh_index, matrices, method: str = "kd", *, top: st
     rebuilt), `mesh_index` (M,) the mesh of each instance, `matrices` (M, 3, 4)
     or (M, 4, 4) affine world-from-object matrices. Each mesh's tree is built
     by `method` with `options` (the registry's); the top level is a BVH
-    (`top="bvh"`, its options TOP_OPTIONS). A singular matrix is an error."""
+    (`top="bvh"`, its options the registry's "top" group: method_table.TOP_OPTIONS). A singular matrix is an error."""
     checks.choice(top, "top", ("bvh",))
     if not isinstance(meshes, (list, tuple)) or not meshes:
         raise ValueError("meshes must be a non-empty list of triangle arrays or Trees")
@@ -467,20 +367,14 @@ def build_instanced(meshes, mesh_index, matrices, method: str = "kd", *, top: st
     idx = np.ascontiguousarray(idx, dtype=np.uint32)
     m = _matrices(matrices, len(idx))
     _core.check_instance_matrices(m)  # before the mesh trees: a bad instance fails at once
-    top_opts = dict(TOP_OPTIONS)
-    for k in list(options):
-        if k in TOP_OPTIONS:
-            top_opts[k] = options.pop(k)
-    top_opts["top_bins"] = checks.number(top_opts["top_bins"], "top_bins", low=2, high=256,
-                                         integer=True)
-    for k in ("top_traversal_cost", "top_intersect_cost"):
-        top_opts[k] = checks.number(top_opts[k], k, low=0, low_open=True)
+    # The top level's options (the registry's "top" group), checked against
+    # their schemas; the rest are the mesh trees'.
+    top_opts = {name: checks.option(OPTIONS[name], options.pop(name, default), None)
+                for name, default in TOP_OPTIONS.items()}
     progress = checks.progress(progress)
     trees = [t if isinstance(t, Tree) else build(t, method, progress=progress, threads=threads,
                                                  **options)
              for t in meshes]
-    scene = _core.build_instanced([t._tree for t in trees], idx, m, int(top_opts["top_bins"]),
-                                  float(top_opts["top_traversal_cost"]),
-                                  float(top_opts["top_intersect_cost"]), checks.threads(threads),
-                                  progress)
+    scene = _core.build_instanced([t._tree for t in trees], idx, m,
+                                  {**top_opts, "threads": checks.threads(threads)}, progress)
     return InstancedTree(scene, trees, idx, m, method, options, top_opts)

@@ -28,6 +28,10 @@ COMMON_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"
 # that apply to it in `extra`).
 BSP_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"] == "bsp"}
 
+# The options of an instanced scene's top level (bsplab.build_instanced), with
+# their defaults: no method's (a tree's build refuses them).
+TOP_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"] == "top"}
+
 # The direction strategies of the core (core/src/builders/strategies/).
 STRATEGIES: tuple[str, ...] = tuple(_REGISTRY["strategies"])
 

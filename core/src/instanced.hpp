@@ -77,7 +77,7 @@ struct TopLevel {
 
     // From build_bvh's nodes (root first, each node's children a pair at
     // 2p + 1, 2p + 2); and the binary nodes back, for drawing and for
-    // trace_path's replay.
+    // the recorded walk (trace/instanced_trace_path.hpp).
     static TopLevel from_nodes(const std::vector<BvhNode>& nodes);
     BvhNode node(size_t i) const;
     static const Pair& pair_of(const Pair* pairs, uint32_t left) { return pairs[(left - 1) >> 1]; }
@@ -103,12 +103,20 @@ struct InstancedScene {
 };
 
 // The top level's options: its BVH's bins and costs (instance boxes are
-// few; a bottom trace costs many box steps, hence the default intersect cost).
+// few; a bottom trace costs many box steps, hence the default intersect
+// cost). The defaults are named here once; the registry's "top" options
+// (top_bins, top_traversal_cost, top_intersect_cost) take them as theirs,
+// with their limits, and top_settings_for() (registry.hpp) fills these
+// fields from option values by name, as a build's BuildOptions are filled.
+constexpr int kTopBins = 16;
+constexpr float kTopTraversalCost = 1.0f;
+constexpr float kTopIntersectCost = 4.0f;
+
 struct TopLevelSettings {
-    int bins = 16;
-    float traversal_cost = 1.0f;
-    float intersect_cost = 4.0f;
-    int threads = 0;
+    int bins = kTopBins;
+    float traversal_cost = kTopTraversalCost;
+    float intersect_cost = kTopIntersectCost;
+    int threads = 0;  // the registry's common "threads" (0: all cores)
 };
 
 // The matrices' own check, before any tree is built (build_instanced makes

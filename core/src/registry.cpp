@@ -11,6 +11,7 @@
 #include "builders/bsp_build.hpp"
 #include "builders/bvh_build.hpp"
 #include "builders/kd_build.hpp"
+#include "instanced.hpp"
 
 namespace bsp {
 
@@ -85,8 +86,17 @@ void set_rbsp_set(BuildOptions& o, const OptionValue& v) {
     else throw std::invalid_argument("must be auto, spiral or dop, got " + s);
 }
 
+// The setter of a numeric TopLevelSettings field, by member pointer.
+template <auto Field>
+void set_top_field(TopLevelSettings& s, const OptionValue& v) {
+    using T = std::remove_reference_t<decltype(s.*Field)>;
+    s.*Field = as_number<T>(v);
+}
+
 // The name, field and setter of an option that sets the numeric field of its name.
 #define NUMBER_FIELD(f) .name = #f, .field = #f, .apply = set_field<&BuildOptions::f>
+// The same for the top level's option top_F, setting TopLevelSettings's F.
+#define TOP_FIELD(f) .name = "top_" #f, .field = #f, .apply_top = set_top_field<&TopLevelSettings::f>
 
 OptionValue whole(int64_t v) { return OptionValue(v); }
 OptionValue real(double v) { return OptionValue(v); }
@@ -123,7 +133,8 @@ std::vector<OptionSpec> make_option_specs() {
          .label = "Memory Limit (MB)", .short_label = "Memory",
          .help = "The build stops with a MemoryError beyond this many megabytes "
                  "(default: half the machine's physical memory)"},
-        {NUMBER_FIELD(threads), .type = T::Int, .group = "common", .default_value = whole(0),
+        {NUMBER_FIELD(threads), .apply_top = set_top_field<&TopLevelSettings::threads>,
+         .type = T::Int, .group = "common", .default_value = whole(0),
          .min = whole(0), .max = whole(1024), .soft_max = 64, .label = "Threads",
          .short_label = "Threads", .help = "Worker threads of the core (0: all cores)"},
         {.name = "leaf_boxes", .field = "leaf_boxes", .apply = set_leaf_boxes,
@@ -217,9 +228,27 @@ std::vector<OptionSpec> make_option_specs() {
          .short_label = "Bins",
          .help = "Centroid bins per axis of the BVH's binned SAH (a node of n triangles uses at "
                  "most 4 + n / 20)"},
+        // An instanced scene's top level (build_instanced): the binned SAH of
+        // its BVH over the instances' boxes, with a bottom trace priced as
+        // an intersection. No method lists them.
+        {TOP_FIELD(bins), .type = T::Int, .group = "top", .default_value = whole(kTopBins),
+         .min = whole(kBvhMinBins), .max = whole(kBvhMaxBins), .soft_max = 64,
+         .label = "Top Bins", .short_label = "Top Bins",
+         .help = "Centroid bins per axis of the top level's binned SAH over the instances"},
+        {TOP_FIELD(traversal_cost), .type = T::Float, .group = "top",
+         .default_value = real(kTopTraversalCost), .min = whole(0), .max = real(1e6),
+         .min_open = true, .soft_max = 10.0, .label = "Top Traversal Cost",
+         .short_label = "Top Traversal", .help = "SAH cost of visiting one top-level node"},
+        {TOP_FIELD(intersect_cost), .type = T::Float, .group = "top",
+         .default_value = real(kTopIntersectCost), .min = whole(0), .max = real(1e6),
+         .min_open = true, .soft_max = 20.0, .label = "Top Instance Cost",
+         .short_label = "Top Instance",
+         .help = "SAH cost of entering one instance (a whole mesh-tree trace, several box "
+                 "steps: more than a triangle test)"},
     };
 }
 
+#undef TOP_FIELD
 #undef NUMBER_FIELD
 
 // ---- The builders -------------------------------------------------------------
@@ -339,7 +368,10 @@ BuildOptions options_for(const MethodSpec& method,
     o.strategy = method.strategy;
     o.plus_axes = method.plus_axes;
     o.kd_nodes = method.kd_nodes;
-    for (const auto& [name, value] : values) option_spec(name);  // unknown names fail here
+    for (const auto& [name, value] : values)  // unknown names fail here
+        if (!option_spec(name).apply)
+            throw std::invalid_argument("option " + name + " is the top level's of an instanced "
+                                        "scene (build_instanced), not a tree's");
     // The method's own defaults where `values` has none.
     std::map<std::string, OptionValue> with_defaults(method.defaults.begin(), method.defaults.end());
     for (const auto& [name, value] : values) with_defaults[name] = value;
@@ -354,6 +386,29 @@ BuildOptions options_for(const MethodSpec& method,
         }
     }
     return o;
+}
+
+TopLevelSettings top_settings_for(const std::map<std::string, OptionValue>& values) {
+    for (const auto& [name, value] : values) {
+        if (option_spec(name).apply_top) continue;  // unknown names fail in option_spec
+        std::string known;
+        for (const OptionSpec& spec : option_specs())
+            if (spec.apply_top) known += (known.empty() ? "" : ", ") + spec.name;
+        throw std::invalid_argument("option " + name + " is not read by the top level; its "
+                                    "options are " + known);
+    }
+    // Every field from the specs, their defaults where `values` has none.
+    TopLevelSettings s;
+    for (const OptionSpec& spec : option_specs()) {
+        if (!spec.apply_top) continue;
+        const auto it = values.find(spec.name);
+        try {
+            spec.apply_top(s, it == values.end() ? spec.default_value : it->second);
+        } catch (const std::invalid_argument& e) {
+            throw std::invalid_argument("option " + spec.name + " " + e.what());
+        }
+    }
+    return s;
 }
 
 Tree build(const std::string& method, std::vector<Triangle> triangles,

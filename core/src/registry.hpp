@@ -22,6 +22,8 @@
 
 namespace bsp {
 
+struct TopLevelSettings;  // instanced.hpp: what the "top" group's options set
+
 constexpr int kMaxK = 64;  // directions per node at most (each costs a sort and a sweep per node)
 
 // An option's value as it crosses from Python: whole numbers stay exact
@@ -37,10 +39,16 @@ struct Choice {
 
 struct OptionSpec {
     std::string name;
-    std::string field;  // the BuildOptions field it sets
-    void (*apply)(BuildOptions&, const OptionValue&) = nullptr;
+    std::string field;  // the BuildOptions field it sets (a "top" option's: TopLevelSettings's)
+    void (*apply)(BuildOptions&, const OptionValue&) = nullptr;  // none for a "top" option
+    // The TopLevelSettings field it sets: the "top" options' and threads
+    // (the top level's build takes the tree builds' thread count).
+    void (*apply_top)(TopLevelSettings&, const OptionValue&) = nullptr;
     OptionType type = OptionType::Float;
-    std::string group;  // "common": every method has it; "bsp": the methods that list it (BSP family, BVH)
+    // "common": every method has it; "bsp": the methods that list it (BSP
+    // family, BVH); "top": an instanced scene's top level (build_instanced),
+    // no method's.
+    std::string group;
     OptionValue default_value;
     // Closed limits unless min_open; none where the value is unbounded.
     // Kept as written (whole or real) so messages print them the same way.
@@ -70,8 +78,9 @@ struct MethodSpec {
     bool all_general_nodes() const { return builder.general_nodes && !kd_nodes; }
 };
 
-// In order: the common options, then the BSP family's. K comes before the
-// options that depend on it (rbsp_set), which options_for() relies on.
+// In order: the common options, the BSP family's, then the top level's. K
+// comes before the options that depend on it (rbsp_set), which options_for()
+// relies on.
 const std::vector<OptionSpec>& option_specs();
 const std::vector<MethodSpec>& method_specs();
 // Throws std::invalid_argument naming the known ones.
@@ -82,6 +91,12 @@ const MethodSpec& method_spec(const std::string& name);
 // specs' limits; here only names and types are checked) set by name.
 BuildOptions options_for(const MethodSpec& method,
                          const std::map<std::string, OptionValue>& values);
+
+// The top level's settings (instanced.hpp) with `values` - the "top"
+// options and threads, by name - set as options_for() sets a method's, the
+// specs' defaults where `values` has none. Throws std::invalid_argument for
+// an unknown name or one the top level does not read.
+TopLevelSettings top_settings_for(const std::map<std::string, OptionValue>& values);
 
 // The tree of method `method` over `triangles` (moved into the tree), with
 // `values` set by option name as options_for() sets them: the one entry of

@@ -1,7 +1,9 @@
 // The registry (registry.hpp) as plain dicts and lists: what the Python
 // package generates its method table, option checks and the add-on's panel
-// from; and options_for(), the BuildOptions a method's values make (for the
-// registry's tests: a build goes through tree.cpp's build() in one call).
+// from; and options_for(), the BuildOptions a method's values make, and
+// top_settings_for(), the TopLevelSettings the top options make (for the
+// registry's tests: a build goes through tree.cpp's build() and an instanced
+// one through instanced.cpp's build_instanced() in one call).
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/string.h>
@@ -9,6 +11,7 @@
 #include <nanobind/stl/vector.h>
 
 #include "bindings/bindings.hpp"
+#include "instanced.hpp"
 #include "registry.hpp"
 
 namespace bsp::bindings {
@@ -135,6 +138,15 @@ void bind_registry(nb::module_& m) {
             return options_for(method_spec(method), values);
         },
         "method"_a, "values"_a, "The method's BuildOptions with `values` set by option name.");
+
+    nb::class_<TopLevelSettings>(m, "TopLevelSettings")
+        .def(nb::init<>())
+        .def_rw("bins", &TopLevelSettings::bins)
+        .def_rw("traversal_cost", &TopLevelSettings::traversal_cost)
+        .def_rw("intersect_cost", &TopLevelSettings::intersect_cost)
+        .def_rw("threads", &TopLevelSettings::threads);
+    m.def("top_settings_for", &top_settings_for, "values"_a,
+          "The top level's settings with `values` (the top options, threads) set by name.");
 }
 
 }  // namespace bsp::bindings

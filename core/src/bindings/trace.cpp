@@ -13,8 +13,8 @@
 
 #include "bindings/arrays.hpp"
 #include "bindings/bindings.hpp"
+#include "bindings/paths.hpp"
 #include "bindings/ray_batches.hpp"
-#include "inspect/tree_geometry.hpp"  // world_plane
 #include "trace/cpu_dispatch.hpp"
 #include "trace/ray_order.hpp"
 #include "trace/trace_path.hpp"
@@ -47,63 +47,9 @@ void intersect(const Tree& tree, Vec3Array origins, Vec3Array directions, FloatI
                        checked_ray_order(ray_order));
 }
 
-// The recorded walk as columns: one row per visited node, one per test.
 nb::dict trace_path(const Tree& tree, std::array<float, 3> o, std::array<float, 3> dir,
                     float tmin, float tmax, bool cull) {
-    const TracePath p = bsp::trace_path(tree, o.data(), dir.data(), tmin, tmax, cull);
-    const size_t n = p.steps.size(), m = p.tests.size();
-    std::vector<uint32_t> node(n), test_step(m), test_prim(m);
-    std::vector<int32_t> depth(n);
-    std::vector<uint8_t> kind(n), result(m);
-    std::vector<double> t_range(2 * n), plane(4 * n, std::nan(""));
-    // A BVH step's box in world units; NaN rows on kd and BSP trees.
-    std::vector<double> box_lo(3 * n, std::nan("")), box_hi(3 * n, std::nan(""));
-    const bool bvh = tree.structure == Structure::Bvh;
-    std::vector<float> test_t(m);
-    for (size_t i = 0; i < n; ++i) {
-        node[i] = p.steps[i].node;
-        depth[i] = p.steps[i].depth;
-        kind[i] = p.steps[i].kind;
-        t_range[2 * i] = p.steps[i].t0;
-        t_range[2 * i + 1] = p.steps[i].t1;
-        if (!bvh) {
-            world_plane(tree, node[i], &plane[4 * i]);
-            continue;
-        }
-        const BvhNode& b = tree.bvh_nodes[node[i]];
-        for (int k = 0; k < 3; ++k) {
-            box_lo[3 * i + k] = double(b.lo[k]) / tree.scale;
-            box_hi[3 * i + k] = double(b.hi[k]) / tree.scale;
-        }
-    }
-    for (size_t i = 0; i < m; ++i) {
-        test_step[i] = p.tests[i].step;
-        test_prim[i] = p.tests[i].prim;
-        result[i] = uint8_t(p.tests[i].result);
-        test_t[i] = p.tests[i].t;
-    }
-    nb::dict d;
-    d["node"] = owned_array(std::move(node));
-    d["depth"] = owned_array(std::move(depth));
-    d["kind"] = owned_array(std::move(kind));
-    d["t_range"] = owned_array(std::move(t_range), 2);
-    d["plane"] = owned_array(std::move(plane), 4);
-    d["box_lo"] = owned_array(std::move(box_lo), 3);
-    d["box_hi"] = owned_array(std::move(box_hi), 3);
-    d["test_step"] = owned_array(std::move(test_step));
-    d["test_prim"] = owned_array(std::move(test_prim));
-    d["test_result"] = owned_array(std::move(result));
-    d["test_t"] = owned_array(std::move(test_t));
-    d["t"] = p.t;
-    d["prim"] = p.prim;
-    d["u"] = p.u;
-    d["v"] = p.v;
-    d["steps"] = p.n_steps;
-    d["general_steps"] = p.n_general_steps;
-    d["tests"] = p.n_tests;
-    d["culled"] = p.n_culled;
-    d["box_tests"] = p.n_box_tests;
-    return d;
+    return path_dict(tree, bsp::trace_path(tree, o.data(), dir.data(), tmin, tmax, cull));
 }
 
 nb::dict cpu_features() {

@@ -1,10 +1,11 @@
 // Closest hits in an instanced scene (instanced.hpp): the top level's BVH
 // walked nearest box first, two levels a step, in float with a per-ray bound
-// on the rounding (TopRay; its boxes are padded besides, so the walk only
-// needs to be conservative, not exact); at each instance the
-// ray carried into object space and traced through the instance's mesh tree
-// by that tree's own kernel (the selected instruction set's, as intersect()
-// would), its segment cut at the closest hit so far.
+// on the rounding (top_walk.hpp's walk_top and TopRay; its boxes are padded
+// besides, so the walk only needs to be conservative, not exact); at each
+// instance the ray carried into object space and traced through the
+// instance's mesh tree by that tree's own kernel (the selected instruction
+// set's, as intersect() would), its segment cut at the closest hit so far.
+// The packet path walks groups of rays with top_walk.hpp's pieces.
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
@@ -12,22 +13,26 @@
 #include <optional>
 #include <stdexcept>
 
-#include <emmintrin.h>
-#include <xmmintrin.h>
-
 #include "instanced.hpp"
 #include "parallel.hpp"
 #include "trace/cpu_dispatch.hpp"
-#include "trace/ray_order.hpp"
 #include "trace/kernels/kernel_set.hpp"
 #include "trace/kernels/tree_view.hpp"
+#include "trace/ray_order.hpp"
+#include "trace/top_walk.hpp"
 
 namespace bsp {
 
 namespace {
 
-// The top level's stack: one entry per level (kBvhMaxDepth bounds the depth).
-constexpr int kTopStack = 64 + 1;  // + 1: the walk writes one slot past the top (mask != 3)
+using top_walk::BottomHit;
+using top_walk::Closest;
+using top_walk::kTopStack;
+using top_walk::object_ray;
+using top_walk::scene_max_of;
+using top_walk::TopRay;
+using top_walk::TopVisit;
+using top_walk::walk_top;
 
 // Rays per thread's chunk (and progress step) on both paths.
 constexpr size_t kChunk = 256;
@@ -40,135 +45,46 @@ TraceRange bottom_kernel(const Tree& tree, bool counting, bool packets) {
     return packets ? k.packets : k.single_ray[counting][int(LeafBoxes::None)];
 }
 
-// The top level's box test, both children of a node at once in SSE: per
-// axis the lanes (A near, B near, A far, B far) - the near face the high one
-// where d < 0, loaded as such from the pair's axis (TopLevel::Pair) - their
-// crossings (x - o) / d in float, the far lanes negated,
-// so that one MAXPS per axis gives both entries and both (negated) exits.
-// Float is conservative here with a per-ray bound: a crossing's rounding is
-// at most three of 2^-24 of |x - o| |1/d| <= (the scene's largest coordinate
-// + |o|) |1/d|, and every crossing is widened by 2^-21 of that (kCrossSlack),
-// so a box's range holds the exact ray's range in it; the boxes are padded
-// besides (instanced_build.cpp). A NaN crossing (an origin in a face plane,
-// the ray parallel to it) loses the max and is ignored. trace_path
-// (bsplab/instanced.py) replays exactly this arithmetic.
-constexpr float kCrossSlack = 1.0f / (1 << 21);
-
-struct TopRay {
-    __m128 org[3], sidir[3], err[3];
-    float o[3], inv[3], e[3];
-    bool neg[3];
-    int near_off[3], far_off[3];  // in a TopLevel::Pair axis: the near faces' lanes, the far faces'
-
-    TopRay() = default;
-    TopRay(const float* of, const float* df, float scene_max) {
-        for (int k = 0; k < 3; ++k) {
-            o[k] = of[k];
-            inv[k] = 1.0f / df[k];
-            e[k] = df[k] == 0.0f ? 0.0f : kCrossSlack * (scene_max + std::fabs(of[k])) * std::fabs(inv[k]);
-            neg[k] = std::signbit(df[k]);
-            near_off[k] = neg[k] ? 2 : 0;
-            far_off[k] = neg[k] ? 0 : 2;
-            org[k] = _mm_set1_ps(o[k]);
-            sidir[k] = _mm_setr_ps(inv[k], inv[k], -inv[k], -inv[k]);
-            err[k] = _mm_set1_ps(e[k]);
-        }
-    }
-
-    // Which of the children A, B the ray enters within [s0, s1] (bit 0: A,
-    // bit 1: B) and their entries. The lanes' arithmetic as above; the
-    // entered test "entry <= exit" on the negated exits' sign flipped back
-    // (exact), in SSE, so that the walk branches once on the mask and not
-    // on two floats read back from memory.
-    int pair(const TopLevel::Pair& p, float s0, float s1, float& a0, float& b0) const {
-        __m128 acc = _mm_setr_ps(s0, s0, -s1, -s1);
-        for (int k = 0; k < 3; ++k) {
-            // (A near, B near, A far, B far): two 8-byte loads.
-            const float* f = p.axis[k];
-            const __m128 nearv = _mm_castpd_ps(_mm_load_sd(reinterpret_cast<const double*>(f + near_off[k])));
-            const __m128 c = _mm_loadh_pi(nearv, reinterpret_cast<const __m64*>(f + far_off[k]));
-            const __m128 t = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(c, org[k]), sidir[k]), err[k]);
-            acc = _mm_max_ps(t, acc);
-        }
-        const __m128 exits = _mm_xor_ps(_mm_movehl_ps(acc, acc), _mm_set1_ps(-0.0f));
-        a0 = _mm_cvtss_f32(acc);
-        b0 = _mm_cvtss_f32(_mm_shuffle_ps(acc, acc, _MM_SHUFFLE(1, 1, 1, 1)));
-        return _mm_movemask_ps(_mm_cmple_ps(acc, exits)) & 3;
-    }
-
-    // One box (the root): the same arithmetic, lane by lane.
-    bool clip(const Box& b, float& t0, float& t1) const {
-        for (int k = 0; k < 3; ++k) {
-            const float nearf = neg[k] ? b.hi[k] : b.lo[k], farf = neg[k] ? b.lo[k] : b.hi[k];
-            const float tn = (nearf - o[k]) * inv[k] - e[k];
-            const float tf = (farf - o[k]) * -inv[k] - e[k];
-            if (tn > t0) t0 = tn;
-            if (tf > -t1) t1 = -tf;
-        }
-        return t0 <= t1;
-    }
-};
-
 struct Bottom {
     TraceRange trace;
     TreeView view;
 };
 
-// The ray in the instance's object space, rounded once to float: false when
-// no float ray is there - beyond float's range (a ray from 10^38 units away
-// to a small mesh) or a direction that underflows to zero.
-bool object_ray(const Instance& inst, const double o[3], const double d[3], float ob[3],
-                float db[3]) {
-    const double* m = inst.object_from_world;
-    bool representable = true;
-    for (int r = 0; r < 3; ++r) {
-        const double x = m[4 * r] * o[0] + m[4 * r + 1] * o[1] + m[4 * r + 2] * o[2] + m[4 * r + 3];
-        const double y = m[4 * r] * d[0] + m[4 * r + 1] * d[1] + m[4 * r + 2] * d[2];
-        representable &= std::fabs(x) <= double(FLT_MAX) && std::fabs(y) <= double(FLT_MAX);
-        ob[r] = representable ? float(x) : 0.0f;
-        db[r] = representable ? float(y) : 0.0f;
-    }
-    return representable && (db[0] != 0.0f || db[1] != 0.0f || db[2] != 0.0f);
-}
+// walk_top's policy on the single-ray path: each instance's mesh tree traced
+// by its kernel; with counting, the top level's steps, the instances entered
+// and the mesh trees' counters (steps, general steps, tests, culled, box
+// tests) summed over them.
+struct CountTop {
+    static constexpr bool kRecords = false;
+    const std::vector<Bottom>& bottom;
+    bool counting;
+    uint32_t top_steps = 0, visits = 0;
+    uint32_t c[5] = {0, 0, 0, 0, 0};
 
-// A ray's closest hit over the instances so far.
-struct Closest {
-    float t = kInf, u = 0, v = 0;
-    int32_t prim = -1, instance = -1;
-    uint64_t flat = std::numeric_limits<uint64_t>::max();
-
-    // The segment's end for the next instance: one ulp beyond the closest
-    // hit, so that a hit at the same t comes back and the tie rule can take it.
-    float limit(float tmax) const { return prim < 0 ? tmax : std::nextafter(t, kInf); }
-    // The nearer hit, and of equal t the smaller flattened index (the
-    // flattened scene's tie rule between instances).
-    void take(float ht, float hu, float hv, int32_t hprim, uint32_t id, uint64_t hflat) {
-        if (ht < t || (ht == t && hflat < flat)) {
-            t = ht;
-            u = hu;
-            v = hv;
-            prim = hprim;
-            instance = int32_t(id);
-            flat = hflat;
+    void top_step(const TopVisit&) { ++top_steps; }
+    void trace_instance(uint32_t, const Instance& inst, const float ob[3], const float db[3],
+                        float tmin, float limit, BottomHit& h) {
+        ++visits;
+        RayBatch one;
+        one.origins = ob;
+        one.directions = db;
+        one.tmin = &tmin;
+        one.tmax = &limit;
+        one.count = 1;
+        uint32_t n[5] = {0, 0, 0, 0, 0};
+        HitBatch out{&h.t, &h.prim, &h.u, &h.v};
+        if (counting) {
+            out.steps = n;
+            out.general_steps = n + 1;
+            out.tests = n + 2;
+            out.culled = n + 3;
+            out.box_tests = n + 4;
         }
-    }
-    void write(const HitBatch& hits, const InstanceHits& extra, size_t i) const {
-        hits.t[i] = prim >= 0 ? t : kInf;
-        hits.prim[i] = prim;
-        hits.u[i] = u;
-        hits.v[i] = v;
-        extra.instance[i] = instance;
+        const Bottom& b = bottom[inst.mesh];
+        b.trace(b.view, one, out, 0, 1);
+        for (int k = 0; k < 5; ++k) c[k] += n[k];
     }
 };
-
-// The scene's largest coordinate: the top level's crossing bound (TopRay).
-float scene_max_of(const InstancedScene& scene) {
-    float m = 0.0f;
-    if (!scene.top.empty())
-        for (int k = 0; k < 3; ++k)
-            m = std::max({m, std::fabs(scene.top.root.lo[k]), std::fabs(scene.top.root.hi[k])});
-    return m;
-}
 
 }  // namespace
 
@@ -208,12 +124,11 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
     bottom.reserve(scene.meshes.size());
     for (const Tree* t : scene.meshes)
         bottom.push_back({bottom_kernel(*t, counting, false), make_tree_view(*t)});
-    const TopLevel::Pair* pairs = scene.top.pairs.data();
     const float scene_max = scene_max_of(scene);
     const uint64_t units_per_ray = rays.count ? Progress::kScale / rays.count : 0;
     // A batch (the caller's, or a window of it in spatial order) traced
     // ray by ray on the threads; the captures name what every batch shares.
-    const auto trace_batch = [&scene, &bottom, pairs, scene_max, counting, threads, progress,
+    const auto trace_batch = [&scene, &bottom, scene_max, counting, threads, progress,
                               units_per_ray](const RayBatch& rays, const HitBatch& hits,
                                              const InstanceHits& extra) {
         parallel_for(rays.count, kChunk, resolve_threads(threads), [&](size_t begin, size_t end) {
@@ -227,121 +142,17 @@ void intersect_instanced(const InstancedScene& scene, const RayBatch& rays, HitB
                 const TopRay ray(of, df, scene_max);
                 Closest best;
                 best.t = tmax;
-                uint32_t top_steps = 0, visits = 0, steps = 0, general = 0, tests = 0, culled = 0,
-                         box_tests = 0;
-                struct Entry {
-                    TopLevel::Link node;
-                    float t0;
-                } stack[kTopStack];
-                int top = 0;
-                float t0 = tmin, t1 = tmax;
-                // The walk visits the nearer entered child at once and pushes
-                // the farther: the order of popping the nearer off the stack
-                // (what trace_path replays), without the store and the reload,
-                // and with one branch on the pair's mask where two on its floats
-                // mispredicted about eight times a ray (callgrind, city). A
-                // child's link comes with its pair's boxes (TopLevel::Pair).
-                TopLevel::Link n = scene.top.root_link;
-                // Both entered: the nearer (A on a tie) next, the other pushed;
-                // one entered: that one next. In integer arithmetic, not
-                // branches: which child is nearer is a coin toss to the predictor.
-                const auto descend = [&](const TopLevel::Pair& p, int mask, float a0, float b0) {
-                    const unsigned a_in = unsigned(mask) & 1u, b_in = unsigned(mask) >> 1;
-                    const unsigned near_b = b_in & ((a_in ^ 1u) | unsigned(b0 < a0));
-                    const float entry[2] = {a0, b0};  // indexed: no branch
-                    stack[top] = {p.link[near_b ^ 1u], entry[near_b ^ 1u]};
-                    top += int(a_in & b_in);
-                    return near_b;
-                };
-                bool live = !scene.top.empty() && ray.clip(scene.top.root, t0, t1);
-                while (live) {
-                    ++top_steps;
-                    if (!n.is_leaf()) {
-                        // Two levels a step: the node's pair and both children's
-                        // pairs tested at once (a leaf child stands in pair 0,
-                        // its result unused), so the child's test does not wait
-                        // on the node's. One test a level, the walk was bound by
-                        // the chain load -> test -> choice -> load, not by its
-                        // instructions: 8 % fewer of them (the pair layout) left
-                        // city bvh's primary rays at 422 ns; tested ahead they
-                        // take 365 ns with 10 % more instructions (callgrind
-                        // 2,896 -> 3,172 a ray). The visits, their order and
-                        // every test's result are the same: no leaf comes
-                        // between a node and its child, so best.t is too.
-                        const TopLevel::Pair& p = TopLevel::pair_of(pairs, n.left());
-                        const TopLevel::Pair* child[2] = {
-                            &TopLevel::pair_of(pairs,
-                                               p.link[0].is_leaf() ? 1u : p.link[0].left()),
-                            &TopLevel::pair_of(pairs,
-                                               p.link[1].is_leaf() ? 1u : p.link[1].left())};
-                        float a0, b0, ca0[2], cb0[2];
-                        const int mask = ray.pair(p, tmin, best.t, a0, b0);
-                        const int cmask[2] = {ray.pair(*child[0], tmin, best.t, ca0[0], cb0[0]),
-                                              ray.pair(*child[1], tmin, best.t, ca0[1], cb0[1])};
-                        if (mask != 0) {
-                            const unsigned c = descend(p, mask, a0, b0);
-                            n = p.link[c];
-                            if (n.is_leaf()) continue;
-                            ++top_steps;  // the child, already tested
-                            if (cmask[c] != 0) {
-                                n = child[c]->link[descend(*child[c], cmask[c], ca0[c], cb0[c])];
-                                continue;
-                            }
-                        }
-                    } else {
-                        for (uint32_t k = 0; k < n.count(); ++k) {
-                            const uint32_t id = scene.top_order[n.first + k];
-                            const Instance& inst = scene.instances[id];
-                            float ob[3], db[3];
-                            if (!object_ray(inst, o, d, ob, db)) continue;
-                            ++visits;
-                            const float limit = best.limit(tmax);
-                            float t, u, v;
-                            int32_t prim;
-                            uint32_t c[5] = {0, 0, 0, 0, 0};
-                            RayBatch one;
-                            one.origins = ob;
-                            one.directions = db;
-                            one.tmin = &tmin;
-                            one.tmax = &limit;
-                            one.count = 1;
-                            HitBatch out{&t, &prim, &u, &v};
-                            if (counting) {
-                                out.steps = c;
-                                out.general_steps = c + 1;
-                                out.tests = c + 2;
-                                out.culled = c + 3;
-                                out.box_tests = c + 4;
-                            }
-                            const Bottom& b = bottom[inst.mesh];
-                            b.trace(b.view, one, out, 0, 1);
-                            steps += c[0], general += c[1], tests += c[2], culled += c[3];
-                            box_tests += c[4];
-                            if (prim >= 0)
-                                best.take(t, u, v, prim, id,
-                                          scene.flat_offset[id] + uint64_t(prim));
-                        }
-                    }
-                    // The next pushed box entered before the closest hit (equal
-                    // t stays: the tie rule decides between instances).
-                    live = false;
-                    while (top > 0) {
-                        const Entry e = stack[--top];
-                        if (e.t0 > best.t) continue;
-                        n = e.node;
-                        live = true;
-                        break;
-                    }
-                }
+                CountTop count{bottom, counting};
+                walk_top(scene, ray, o, d, tmin, tmax, best, count);
                 best.write(hits, extra, i);
                 if (counting) {
-                    hits.steps[i] = steps;
-                    hits.general_steps[i] = general;
-                    hits.tests[i] = tests;
-                    hits.culled[i] = culled;
-                    hits.box_tests[i] = box_tests;
-                    extra.top_steps[i] = top_steps;
-                    extra.instance_visits[i] = visits;
+                    hits.steps[i] = count.c[0];
+                    hits.general_steps[i] = count.c[1];
+                    hits.tests[i] = count.c[2];
+                    hits.culled[i] = count.c[3];
+                    hits.box_tests[i] = count.c[4];
+                    extra.top_steps[i] = count.top_steps;
+                    extra.instance_visits[i] = count.visits;
                 }
             }
             if (progress) progress->add(units_per_ray * (end - begin));

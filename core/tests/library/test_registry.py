@@ -9,7 +9,8 @@ import pytest
 
 import bsplab
 from bsplab import _core, checks, scenes
-from bsplab.method_table import BSP_OPTIONS, COMMON_OPTIONS, MAX_K, METHODS, OPTIONS, STRATEGIES
+from bsplab.method_table import (BSP_OPTIONS, COMMON_OPTIONS, MAX_K, METHODS, OPTIONS,
+                                 STRATEGIES, TOP_OPTIONS)
 
 def test_methods_name_known_strategies_builders_and_options():
     assert set(STRATEGIES) >= {"axes", "fixed", "random", "normals", "clustered", "ize"}
@@ -43,9 +44,41 @@ def test_all_general_nodes_says_what_the_trees_hold(method):
 
 
 def test_groups_split_the_options():
-    assert list(OPTIONS) == list(COMMON_OPTIONS) + list(BSP_OPTIONS)
+    assert list(OPTIONS) == list(COMMON_OPTIONS) + list(BSP_OPTIONS) + list(TOP_OPTIONS)
     used = {name for m in METHODS.values() for name in m.extra}
     assert used == set(BSP_OPTIONS)
+    # The top level's are no method's.
+    assert set(TOP_OPTIONS) == {"top_bins", "top_traversal_cost", "top_intersect_cost"}
+    assert not any(set(TOP_OPTIONS) & set(m.params) for m in METHODS.values())
+
+
+def test_top_settings_come_from_the_registry():
+    s = _core.top_settings_for({})
+    assert (s.bins, s.traversal_cost, s.intersect_cost, s.threads) == (
+        TOP_OPTIONS["top_bins"], TOP_OPTIONS["top_traversal_cost"],
+        TOP_OPTIONS["top_intersect_cost"], COMMON_OPTIONS["threads"])
+    s = _core.top_settings_for({"top_bins": 40, "top_intersect_cost": 2.5, "threads": 3})
+    assert (s.bins, s.intersect_cost, s.threads) == (40, 2.5, 3)
+    # The same bins limits as a BVH's: the same builder.
+    assert (OPTIONS["top_bins"]["min"], OPTIONS["top_bins"]["max"]) == \
+        (OPTIONS["bins"]["min"], OPTIONS["bins"]["max"])
+
+
+@pytest.mark.parametrize("values, words", [
+    ({"k": 6}, "option k is not read by the top level; its options are threads, top_bins"),
+    ({"colour": 1}, "unknown option colour"),
+    ({"top_bins": 2.5}, "option top_bins takes a whole number"),
+])
+def test_top_settings_refuse_other_options(values, words):
+    with pytest.raises(ValueError, match=words):
+        _core.top_settings_for(values)
+
+
+def test_a_tree_refuses_the_top_levels_options():
+    with pytest.raises(ValueError, match="option top_bins is the top level's of an instanced"):
+        _core.options_for("kd", {"top_bins": 16})
+    with pytest.raises(TypeError, match="unknown build option.s. top_bins for method 'kd'"):
+        bsplab.build(scenes.generate("cube"), "kd", top_bins=16)
 
 
 def within(spec, value, low=None):
@@ -59,7 +92,9 @@ def within(spec, value, low=None):
 def test_schema_is_complete_and_its_default_is_valid(name):
     spec = OPTIONS[name]
     assert spec["label"] and spec["short_label"] and spec["help"]
-    assert hasattr(_core.BuildOptions(), spec["field"])
+    # The field it sets: a tree's BuildOptions', a top option's the top level's.
+    fields = _core.TopLevelSettings() if spec["group"] == "top" else _core.BuildOptions()
+    assert hasattr(fields, spec["field"])
     if spec["type"] == "enum":
         assert spec["default"] in [c["name"] for c in spec["choices"]]
         assert spec["min"] is None and spec["max"] is None
