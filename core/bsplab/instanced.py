@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _core, checks
-from .method_table import OPTIONS, TOP_OPTIONS
+from . import _core, checks, method_table
+from .method_table import NOT_TREE_OPTIONS, OPTIONS, TOP_OPTIONS
 from .tree import COUNTERS, Tree, build
 
 # The instanced trace's counters beyond a tree's (COUNTERS, which here hold
@@ -53,22 +53,25 @@ class InstancedTree:
     structure = "two_level"
 
     def __init__(self, scene, meshes: list[Tree], mesh_index: np.ndarray, matrices: np.ndarray,
-                 method: str, options: dict, top_options: dict):
+                 method: str, options: dict, top: str, top_options: dict):
         self._scene = scene
         self.meshes = list(meshes)  # keeps the bottom trees alive: the scene points at them
         self.mesh_index = mesh_index
         self.matrices = matrices
-        self.method = method
+        self.method = method  # every mesh tree's (build_instanced checks it)
         self.options = dict(options)
+        self.top = top  # the top level's structure
         self.top_options = dict(top_options)
         self._normal_matrices = None
         self._top_arrays = None
         self._bounds = None
         self._bottom_stats = None
         sizes = np.array([len(t.triangles) for t in self.meshes], np.int64)
-        # Where each instance's triangles start in the flattened scene.
-        self.flat_offsets = np.concatenate([[0], np.cumsum(sizes[mesh_index])[:-1]]).astype(np.int64) \
-            if len(mesh_index) else np.zeros(0, np.int64)
+        # Where each instance's triangles start in the flattened scene, and
+        # how many it holds.
+        ends = np.cumsum(sizes[mesh_index]).astype(np.int64)
+        self.flat_offsets = np.concatenate([[0], ends[:-1]]).astype(np.int64)
+        self.flat_triangles = int(ends[-1]) if len(ends) else 0
 
     @property
     def stats(self) -> dict:
@@ -76,7 +79,8 @@ class InstancedTree:
         if self._bottom_stats is None:  # the mesh trees do not change: read them once
             self._bottom_stats = [t.stats for t in self.meshes]
         bottom = self._bottom_stats
-        s["method"] = self.method
+        s["method"] = self.method  # the mesh trees'
+        s["top_method"] = self.top
         # The mesh trees share their options: the quality that built them.
         s["build_quality"] = bottom[0]["build_quality"] if bottom else None
         s["bottom_bytes"] = int(sum(b["bytes"] for b in bottom))
@@ -93,8 +97,24 @@ class InstancedTree:
         return s
 
     def instance_of(self, flat_prim) -> np.ndarray:
-        """The instance of each index into flatten()'s triangles (-1 for -1)."""
-        p = np.asarray(flat_prim, np.int64)
+        """The instance of each index into flatten()'s triangles, -1 for -1
+        (a miss, as intersect()'s and Embree's prim say it). Any other index
+        outside 0..flat_triangles - 1 is an error naming it."""
+        try:
+            p = np.asarray(flat_prim)
+        except (TypeError, ValueError):
+            raise TypeError("flat_prim must be integers (indices into flatten()'s triangles)") \
+                from None
+        if p.size and not np.issubdtype(p.dtype, np.integer):
+            raise TypeError(f"flat_prim must be integers (indices into flatten()'s triangles), "
+                            f"got {p.dtype}")
+        p = p.astype(np.int64)
+        bad = np.flatnonzero((p.reshape(-1) < -1) | (p.reshape(-1) >= self.flat_triangles))
+        if len(bad):
+            k = int(bad[0])
+            raise ValueError(f"flat_prim[{k}] = {int(p.reshape(-1)[k])} is out of range: the "
+                             f"flattened scene has {self.flat_triangles} triangles "
+                             f"(0..{self.flat_triangles - 1}; -1: a miss)")
         inst = np.searchsorted(self.flat_offsets, p, side="right") - 1
         return np.where(p >= 0, inst, -1)
 
@@ -330,8 +350,9 @@ class InstancedTree:
 
     def __repr__(self) -> str:
         s = self._scene.stats()
-        return (f"<bsplab.InstancedTree {self.method}: {s['meshes']} meshes, "
-                f"{s['instances']} instances, {s['instanced_triangles']} instanced triangles>")
+        return (f"<bsplab.InstancedTree {self.method} meshes, {self.top} top level: "
+                f"{s['meshes']} meshes, {s['instances']} instances, "
+                f"{s['instanced_triangles']} instanced triangles>")
 
 
 def check_instance_matrices(matrices) -> np.ndarray:
@@ -346,35 +367,84 @@ def check_instance_matrices(matrices) -> np.ndarray:
     return m
 
 
-def build_instanced(meshes, mesh_index, matrices, method: str = "kd", *, top: str = "bvh",
-                    threads=0, progress=None, **options) -> InstancedTree:
+def build_instanced(meshes, mesh_index, matrices, method: str | None = None, *,
+                    top: str = "bvh", threads=0, progress=None, **options) -> InstancedTree:
     """An instanced scene: `meshes` a list of (N, 3, 3) triangle arrays (or
     (vertices, indices) pairs, or already built Trees, which are shared, not
-    rebuilt), `mesh_index` (M,) the mesh of each instance, `matrices` (M, 3, 4)
-    or (M, 4, 4) affine world-from-object matrices. Each mesh's tree is built
-    by `method` with `options` (the registry's); the top level is a BVH
-    (`top="bvh"`, its options the registry's "top" group: method_table.TOP_OPTIONS). A singular matrix is an error."""
+    rebuilt), `mesh_index` (M,) the mesh of each instance (at least one),
+    `matrices` (M, 3, 4) or (M, 4, 4) affine world-from-object matrices.
+    Each mesh given as triangles gets a tree built by `method` with `options`
+    (the registry's); the top level is a BVH (`top="bvh"`, its options the
+    registry's "top" group, method_table.TOP_OPTIONS: top_bins,
+    top_traversal_cost, top_intersect_cost).
+
+    A scene's mesh trees share one method, which stats["method"] and the
+    repr name: `method=None` takes the given Trees' (kd when every mesh is
+    triangles), and a given Tree of another method than `method` is an
+    error, not a scene misdescribed. A given Tree is used as built, so an
+    option it was built otherwise with (k=5 given, k=6 built) is an error
+    naming the option, not ignored; options that shape no tree (threads,
+    memory_limit_mb: method_table.NOT_TREE_OPTIONS) are not compared.
+    Errors name the instance (a singular or non-finite matrix, a mesh index
+    out of range) or the mesh (one with no triangles)."""
     checks.choice(top, "top", ("bvh",))
     if not isinstance(meshes, (list, tuple)) or not meshes:
         raise ValueError("meshes must be a non-empty list of triangle arrays or Trees")
     idx = np.asarray(mesh_index)
     if idx.ndim != 1 or not (np.issubdtype(idx.dtype, np.integer) or len(idx) == 0):
         raise TypeError(f"mesh_index must be a 1-d array of integers, got {idx.dtype} {idx.shape}")
-    if len(idx) and (idx.min() < 0 or idx.max() >= len(meshes)):
+    if not len(idx):
+        # As a tree needs a triangle (bsplab.build refuses none), a scene
+        # needs an instance.
+        raise ValueError("mesh_index is empty: there are no instances to build a scene of")
+    if idx.min() < 0 or idx.max() >= len(meshes):
         i = int(np.flatnonzero((idx < 0) | (idx >= len(meshes)))[0])
         raise ValueError(f"instance {i}: mesh index {int(idx[i])} is out of range "
                          f"({len(meshes)} meshes)")
     idx = np.ascontiguousarray(idx, dtype=np.uint32)
     m = _matrices(matrices, len(idx))
     _core.check_instance_matrices(m)  # before the mesh trees: a bad instance fails at once
+    given = [(i, t) for i, t in enumerate(meshes) if isinstance(t, Tree)]
+    method = _scene_method(method, given)
     # The top level's options (the registry's "top" group), checked against
     # their schemas; the rest are the mesh trees'.
     top_opts = {name: checks.option(OPTIONS[name], options.pop(name, default), None)
                 for name, default in TOP_OPTIONS.items()}
+    checked = checks.build_options(method_table.get(method), options)  # names a bad one
+    for i, t in given:
+        for name in options:
+            if name not in NOT_TREE_OPTIONS and t.options.get(name) != checked[name]:
+                raise ValueError(
+                    f"option {name}={checked[name]!r}: mesh {i} is a Tree built with "
+                    f"{name}={t.options.get(name)!r}, and a given Tree is used as built (the "
+                    "options build the meshes given as triangles)")
     progress = checks.progress(progress)
-    trees = [t if isinstance(t, Tree) else build(t, method, progress=progress, threads=threads,
-                                                 **options)
-             for t in meshes]
+    trees = []
+    for i, t in enumerate(meshes):
+        if not isinstance(t, Tree):
+            try:
+                t = build(t, method, progress=progress, threads=threads, **options)
+            except (TypeError, ValueError) as e:
+                raise type(e)(f"mesh {i}: {e}") from None
+        trees.append(t)
     scene = _core.build_instanced([t._tree for t in trees], idx, m,
                                   {**top_opts, "threads": checks.threads(threads)}, progress)
-    return InstancedTree(scene, trees, idx, m, method, options, top_opts)
+    return InstancedTree(scene, trees, idx, m, method, options, top, top_opts)
+
+
+def _scene_method(method, given) -> str:
+    """The one method of a scene's mesh trees: `method`, or (None) the given
+    Trees' or kd; a given Tree of another method is an error."""
+    if method is None:
+        methods = sorted({t.method for _, t in given})
+        if len(methods) > 1:
+            raise ValueError(f"the given Trees are of methods {', '.join(methods)}: a scene's "
+                             "mesh trees share one method")
+        method = methods[0] if methods else "kd"
+    method_table.get(method)  # an unknown method named
+    for i, t in given:
+        if t.method != method:
+            raise ValueError(f"mesh {i} is a {t.method} tree, not {method}: a scene's mesh trees "
+                             f"share one method (pass method={t.method!r}, or mesh {i}'s "
+                             f"triangles to build its tree by {method})")
+    return method

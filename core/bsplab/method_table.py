@@ -24,6 +24,11 @@ OPTIONS: dict[str, dict] = {o["name"]: o for o in _REGISTRY["options"]}
 # Options every method understands, with their defaults.
 COMMON_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"] == "common"}
 
+# Common options that bound how a tree is built (its threads, its memory)
+# and change nothing in the tree built: two trees built under other values
+# of them are the same tree (build_instanced does not compare them).
+NOT_TREE_OPTIONS = ("threads", "memory_limit_mb")
+
 # Options of the BSP family, with their defaults (a method lists the ones
 # that apply to it in `extra`).
 BSP_OPTIONS = {name: o["default"] for name, o in OPTIONS.items() if o["group"] == "bsp"}

@@ -5,6 +5,7 @@
 #include <cfloat>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -28,6 +29,14 @@ constexpr double kBoxPadRel = 1.0 / (1 << 18);
 
 std::string instance_name(size_t i) { return "instance " + std::to_string(i); }
 
+// A number as printf's %g writes it: a determinant of 1e-13 reads 1e-13, not
+// std::to_string's 0.000000.
+std::string shortest(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return buf;
+}
+
 // The inverse of x = A x' + b (row-major 3 x 4), or throws.
 void invert(const double* m, double* inv, size_t i) {
     for (int k = 0; k < 12; ++k)
@@ -45,7 +54,7 @@ void invert(const double* m, double* inv, size_t i) {
                                         m[4 * r + 2] * m[4 * r + 2]));
     if (!(std::fabs(det) > kSingularDeterminant * norm * norm * norm) || !std::isfinite(det))
         throw std::invalid_argument(
-            instance_name(i) + ": its matrix is singular (determinant " + std::to_string(det) +
+            instance_name(i) + ": its matrix is singular (determinant " + shortest(det) +
             "): it flattens the mesh, and a ray cannot be carried into its object space");
     const double r = 1.0 / det;
     const double A[9] = {c00 * r, c01 * r, c02 * r, c10 * r, c11 * r, c12 * r,
@@ -73,7 +82,7 @@ Box world_box(const Box& object, double scale, const double* m) {
     for (int r = 0; r < 3; ++r) mag = std::max({mag, std::fabs(lo[r]), std::fabs(hi[r])});
     if (!(mag <= 0.5 * double(FLT_MAX)))  // the caller names the instance
         throw std::range_error("its matrix carries the mesh beyond float's range (a coordinate of " +
-                               std::to_string(mag) + ")");
+                               shortest(mag) + ")");
     const double pad = kBoxPadRel * mag + 1e-30;
     Box b;
     for (int r = 0; r < 3; ++r) {
