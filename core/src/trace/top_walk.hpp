@@ -62,14 +62,30 @@ struct TopRay {
     }
 
     // Which of the children A, B the ray enters within [s0, s1] (bit 0: A,
-    // bit 1: B) and their entries; with kExits their exits too (exits[0]:
-    // A's, exits[1]: B's), for the recorded walk. The lanes' arithmetic as
-    // above; the entered test "entry <= exit" on the negated exits' sign
-    // flipped back (exact), in SSE, so that the walk branches once on the
-    // mask and not on two floats read back from memory.
-    template <bool kExits = false>
-    int pair(const TopLevel::Pair& p, float s0, float s1, float& a0, float& b0,
-             float* exits = nullptr) const {
+    // bit 1: B) and their entries. The lanes' arithmetic as above; the
+    // entered test "entry <= exit" on the negated exits' sign flipped back
+    // (exact), in SSE, so that the walk branches once on the mask and not
+    // on two floats read back from memory.
+    int pair(const TopLevel::Pair& p, float s0, float s1, float& a0, float& b0) const {
+        const __m128 acc = crossings(p, s0, s1);
+        const __m128 exits = _mm_xor_ps(_mm_movehl_ps(acc, acc), _mm_set1_ps(-0.0f));
+        a0 = _mm_cvtss_f32(acc);
+        b0 = _mm_cvtss_f32(_mm_shuffle_ps(acc, acc, _MM_SHUFFLE(1, 1, 1, 1)));
+        return _mm_movemask_ps(_mm_cmple_ps(acc, exits)) & 3;
+    }
+
+    // The same test's exits (out[0]: A's, out[1]: B's), for the recorded
+    // walk: the same arithmetic, so the same floats.
+    void pair_exits(const TopLevel::Pair& p, float s0, float s1, float out[2]) const {
+        const __m128 acc = crossings(p, s0, s1);
+        const __m128 exits = _mm_xor_ps(_mm_movehl_ps(acc, acc), _mm_set1_ps(-0.0f));
+        out[0] = _mm_cvtss_f32(exits);
+        out[1] = _mm_cvtss_f32(_mm_shuffle_ps(exits, exits, _MM_SHUFFLE(1, 1, 1, 1)));
+    }
+
+    // Per lane the latest entry (A, B) and the earliest exit negated (A, B)
+    // of the pair's boxes within [s0, s1].
+    __m128 crossings(const TopLevel::Pair& p, float s0, float s1) const {
         __m128 acc = _mm_setr_ps(s0, s0, -s1, -s1);
         for (int k = 0; k < 3; ++k) {
             // (A near, B near, A far, B far): two 8-byte loads.
@@ -79,14 +95,7 @@ struct TopRay {
             const __m128 t = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(c, org[k]), sidir[k]), err[k]);
             acc = _mm_max_ps(t, acc);
         }
-        const __m128 ends = _mm_xor_ps(_mm_movehl_ps(acc, acc), _mm_set1_ps(-0.0f));
-        a0 = _mm_cvtss_f32(acc);
-        b0 = _mm_cvtss_f32(_mm_shuffle_ps(acc, acc, _MM_SHUFFLE(1, 1, 1, 1)));
-        if constexpr (kExits) {
-            exits[0] = _mm_cvtss_f32(ends);
-            exits[1] = _mm_cvtss_f32(_mm_shuffle_ps(ends, ends, _MM_SHUFFLE(1, 1, 1, 1)));
-        }
-        return _mm_movemask_ps(_mm_cmple_ps(acc, ends)) & 3;
+        return acc;
     }
 
     // One box (the root): the same arithmetic, lane by lane.
@@ -105,7 +114,10 @@ struct TopRay {
 // The ray in the instance's object space, rounded once to float: false when
 // no float ray is there - beyond float's range (a ray from 10^38 units away
 // to a small mesh) or a direction that underflows to zero.
-inline bool object_ray(const Instance& inst, const double o[3], const double d[3], float ob[3],
+// Out of line, as the compiler chose it when this was private to
+// instanced_traverse.cpp: inlined into the walks it cost the packet path 2 %
+// more instructions a ray (callgrind, city kd, random rays).
+__attribute__((noinline)) inline bool object_ray(const Instance& inst, const double o[3], const double d[3], float ob[3],
                        float db[3]) {
     const double* m = inst.object_from_world;
     bool representable = true;
@@ -241,10 +253,14 @@ inline void walk_top(const InstancedScene& scene, const TopRay& ray, const doubl
             const TopLevel::Pair* child[2] = {&TopLevel::pair_of(pairs, child_left[0]),
                                               &TopLevel::pair_of(pairs, child_left[1])};
             float a0, b0, ca0[2], cb0[2], exits[2], cexits[2][2];
-            const int mask = ray.pair<kRecords>(p, tmin, best.t, a0, b0, exits);
-            const int cmask[2] = {
-                ray.pair<kRecords>(*child[0], tmin, best.t, ca0[0], cb0[0], cexits[0]),
-                ray.pair<kRecords>(*child[1], tmin, best.t, ca0[1], cb0[1], cexits[1])};
+            const int mask = ray.pair(p, tmin, best.t, a0, b0);
+            const int cmask[2] = {ray.pair(*child[0], tmin, best.t, ca0[0], cb0[0]),
+                                  ray.pair(*child[1], tmin, best.t, ca0[1], cb0[1])};
+            if constexpr (kRecords) {
+                ray.pair_exits(p, tmin, best.t, exits);
+                ray.pair_exits(*child[0], tmin, best.t, cexits[0]);
+                ray.pair_exits(*child[1], tmin, best.t, cexits[1]);
+            }
             if (mask != 0) {
                 const unsigned c = descend(p, left, mask, a0, b0, exits);
                 n = p.link[c];
