@@ -266,6 +266,47 @@ def test_trace_path_replays_intersect_bit_for_bit(method):
         assert len(p["top"]["node"]) == p["top_steps"] and len(p["instances"]) == p["instance_visits"]
 
 
+def test_trace_path_rows_are_the_top_levels_nodes_in_walk_order():
+    meshes, idx, mats = instanced_scenes.transformed(count=24)
+    it = bsplab.build_instanced(meshes, idx, mats, "kd")
+    boxes = it.top_boxes()
+    row_of = {int(n): r for r, n in enumerate(boxes["node"])}
+    arrays = it._scene.top_arrays()
+    parent = {int(c): n for n in range(len(arrays["leaf"])) if not arrays["leaf"][n]
+              for c in (arrays["first"][n], arrays["first"][n] + 1)}
+    flat = it.flatten()
+    o, d, tmax = ray_families.family("outside_in", flat, 80, seed=4)
+    walked = 0
+    for i in range(len(o)):
+        p = it.trace_path(o[i], d[i], tmax=float(tmax[i]))
+        top = p["top"]
+        nodes = top["node"].tolist()
+        if not nodes:
+            continue
+        walked += 1
+        # The root first; every other node after its parent, each once,
+        # with its own box.
+        assert nodes[0] == 0 and len(set(nodes)) == len(nodes)
+        seen = set()
+        for k, n in enumerate(nodes):
+            assert n == 0 or parent[n] in seen, (i, nodes)
+            seen.add(n)
+            r = row_of[n]
+            assert np.array_equal(top["box_lo"][k], boxes["lo"][r])
+            assert np.array_equal(top["box_hi"][k], boxes["hi"][r])
+        t0, t1 = top["t_range"][:, 0], top["t_range"][:, 1]
+        assert (t0 <= t1).all()
+        # The instances entered are those of the leaves visited, in order.
+        leaves = [int(x) for n in nodes if boxes["leaf"][row_of[n]]
+                  for x in boxes["instances"][row_of[n]]]
+        entered = [v["instance"] for v in p["instances"]]
+        assert entered == [x for x in leaves if x in entered]
+        if p["instance"] >= 0:
+            assert p["instance"] in entered
+            assert p["flat_prim"] == it.flat_offsets[p["instance"]] + p["prim"]
+    assert walked > 40
+
+
 def test_top_boxes_hold_their_instances():
     meshes, idx, mats = instanced_scenes.transformed(count=40)
     it = bsplab.build_instanced(meshes, idx, mats, "kd")
