@@ -85,8 +85,9 @@ def cmd_demo(args) -> int:
              f"{emb.last_seconds * 1e3:.1f} ms; ours 1 thread {t1 * 1e3:.1f} ms "
              f"= {emb.last_seconds / t1:.2f}x Embree's speed"),
             ("agreement with Embree",
-             f"{c['agreement'] * 100:.4f}% ({c['grazing']} grazing, "
-             f"{len(c['unexplained'])} unexplained)"),
+             f"{c['agreement'] * 100:.4f}% (disagreeing: {c['embree_wrong']} Embree wrong, "
+             f"{c['grazing']} grazing, {c['bsplab_wrong']} ours wrong, "
+             f"{c['undecided']} undecided)"),
         ]
     else:
         rows.append(("Embree", "embreex not installed: no comparison"))
@@ -243,8 +244,11 @@ def cmd_agree(args) -> int:
     methods = args.methods if named else list(bsplab.methods())
     agreement.check_k(methods, args.k, named)
     rows = agreement.run(args.scenes, methods, args.rays, k=args.k, seed=args.seed)
-    bad = sum(r["unexplained"] for r in rows)
-    print(f"\n{bad} unexplained disagreements in {len(rows)} scene x method x family trials")
+    bad = sum(r["failing"] for r in rows)
+    wrong = sum(r["embree_wrong"] for r in rows)
+    print(f"\n{bad} failing rays (ours exactly wrong beyond rounding, or undecided) in "
+          f"{len(rows)} scene x method x family trials; {wrong} where Embree is exactly wrong "
+          "and ours is the exact answer")
     return 1 if bad else 0
 
 

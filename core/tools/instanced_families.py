@@ -57,7 +57,7 @@ def main() -> None:
                     row = tot[(family, packets)]
                     row[0] += len(o)
                     row[1] += int((hits["prim"] != ref["prim"]).sum())
-                    row[2] += len(c["unexplained"])
+                    row[2] += len(c["failing"])
                     row[3] += len(leaked)
                     row[4] += int(differ.sum())
     print("| family | rays | prim differs (single / packets) | unexplained | leaks "

@@ -240,7 +240,7 @@ def _unexplained(hits: dict, embree_hits: dict, tris, rays: Rays,
     c = oracle.compare(hits, embree_hits, triangles=tris, origins=rays.origins,
                        directions=rays.directions,
                        slack=None if slack is None else slack(rays, hits, embree_hits))
-    return len(c["unexplained"]), c["grazing"]
+    return len(c["failing"]), c["grazing"]
 
 
 def _row(trial: Trial, tris, s: dict, rays: Rays, times: PairedTimes, embree,
