@@ -3,15 +3,19 @@ rational arithmetic on the values the tracers were given, for the oracle's
 verdict on every ray where a tree and Embree disagree (oracle.compare).
 
 Two stages per ray. A double-precision filter over the scene's triangles
-with a proven error bound on each quantity it computes: a box test with a
-margin far above double rounding, then the three edge functions (signed
-volumes d . (a_i x a_j), a_i = v_i - o) and the plane distance, each with a
-forward error bound. A triangle whose edge functions certainly differ in
-sign is missed; one certainly hit whose t interval certainly lies beyond
-another certain hit's is not first. The few triangles left are decided in
-integers: every input is a float, so after scaling by a power of two it is
-an integer, and the same volumes then are exact (Python's unbounded ints:
-what fractions.Fraction would compute, without its gcd on every step).
+with a proven error bound on each quantity it computes: a box test (groups
+of consecutive triangles, then each triangle) widened far beyond its
+rounding, then Moller and Trumbore's barycentric numerators, determinant and
+distance (triple products), each with a forward error bound carried from
+the inputs' own (an instanced vertex is a matrix product in double). A
+triangle whose barycentric signs certainly conflict is missed; one whose t
+interval certainly lies outside the segment, or beyond a certain hit's,
+is not first. The few triangles left are decided in integers: every input
+is a float, a dyadic rational n / 2^e, so scaled by a common power of two
+it is an integer, and the edge functions d . (a_i x a_j), a_i = v_i - o,
+and the volume a0 . (a1 x a2) are then exact (Python's unbounded ints: what
+fractions.Fraction would compute, without its gcd on every step); t is
+their Fraction.
 
 What is exact here is a convention as much as arithmetic in one case: a ray
 that lies exactly in a triangle's plane has no point where it crosses it,
@@ -72,7 +76,7 @@ class ExactScene:
         self._exact_vertices = exact_vertices
         self._cache: dict[int, tuple] = {}
         # Each exact triangle's box (the error bounds), with a margin for
-        # the rounding of its corners minus the origin in the slab test; and
+        # the rounding of its corners; and
         # the boxes of groups of _GROUP consecutive triangles (input order is
         # mostly spatially coherent: a mesh, an instance), tested first.
         lo, hi = (approx - error).min(axis=1), (approx + error).max(axis=1)
@@ -292,11 +296,13 @@ class RayVerdict:
         d64 = np.asarray(direction, np.float32).astype(np.float64)
         o = [_dyadic(x) for x in np.asarray(origin, np.float32).tolist()]
         d = [_dyadic(x) for x in np.asarray(direction, np.float32).tolist()]
-        flo = Fraction(float(np.float32(lo)))
-        fhi = None if np.isinf(hi) else Fraction(float(np.float32(hi)))
+        # The segment's ends as both tracers take them: float32.
+        lo32, hi32 = float(np.float32(lo)), float(np.float32(hi))
+        flo = Fraction(lo32)
+        fhi = None if np.isinf(hi32) else Fraction(hi32)
         self.t: dict[int, Fraction] = {}
         self.in_plane: set[int] = set()
-        for k in _candidates(scene, o64, d64, float(lo), float(hi)).tolist():
+        for k in _candidates(scene, o64, d64, lo32, hi32).tolist():
             kind, t = _exact_test(scene.exact(k), o, d)
             if kind == "hit":
                 self.t[k] = t
