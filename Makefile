@@ -38,6 +38,7 @@ demo: core
 
 # The same job on the core alone, without Blender.
 demo-core: core
+	mkdir -p out
 	$(BIN)/python -m bsplab demo --scene spheres --out out/demo.png
 
 test: test-cpp test-core test-sanitize test-blender

@@ -177,11 +177,14 @@ def test_stats_embree_rows(addon, agreement):
     rows = dict(addon.build_render.statistics.embree_rows({
         "available": True, "bsplab_seconds": 0.02, "embree_seconds": 0.01, "time_ratio": 2.0,
         "compare": {"rays": 100, "agree": int(agreement * 100), "agreement": agreement,
-                    "grazing": 1}}))
+                    "embree_wrong": 2, "grazing": 1, "at_ends": 0, "bsplab_wrong": 0,
+                    "undecided": 0}}))
     assert rows["Time Ratio"] == "2.00x Embree"
     assert rows["Agreement"] == "{:.4%}".format(agreement)
     assert rows["Disagreeing"] == str(100 - int(agreement * 100))
+    assert rows["Embree Wrong"] == "2"
     assert rows["At Edges"] == "1"
+    assert rows["BSP Lab Wrong"] == rows["Undecided"] == "0"
 
 
 def test_panel_shows_the_methods_own_params(addon, core, empty_scene):

@@ -96,12 +96,25 @@ def embree_rows(embree):
         rows.append(("Agreement", "{:.4%}".format(agreement)))
     if "rays" in compare and "agree" in compare:
         rows.append(("Disagreeing", _count(compare["rays"] - compare["agree"])))
-        rows.append(("At Edges", _count(compare.get("grazing"))))
+        # The oracle's verdict on the disagreeing rays (bsplab.oracle.compare):
+        # Embree's own errors apart from ours; rows for the keys present
+        # (statistics from before the exact verdict have only grazing).
+        for key, label in VERDICT_ROWS:
+            if key in compare:
+                rows.append((label, _count(compare[key])))
     if agreement is None:
         for key, value in sorted(compare.items()):
             if isinstance(value, (int, float)):
                 rows.append((key.replace("_", " ").title(), _number(value, 4)))
     return rows
+
+
+# The oracle's classes of disagreeing rays, as the panel names them: Embree
+# exactly wrong where ours is the exact answer; ours within float rounding
+# of an edge or of the segment's ends; ours exactly wrong; undecided.
+VERDICT_ROWS = (("embree_wrong", "Embree Wrong"), ("grazing", "At Edges"),
+                ("at_ends", "At Segment Ends"), ("bsplab_wrong", "BSP Lab Wrong"),
+                ("undecided", "Undecided"))
 
 
 def _flattened_rows(embree):

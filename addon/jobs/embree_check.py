@@ -7,7 +7,8 @@ array is and how a hit is matched depends on the tree's kind, chosen
 through `SIDES` by `tree.structure`: a flat tree's own triangles; or a
 two-level build's flattened scene (every instance's triangles in world
 space), its hit matched by the index in that scene (flat_prim), with the
-transform's rounding as the oracle's slack (docs/instances.md).
+transform's rounding as the oracle's slack (docs/instances.md) and the
+instances' exact world triangles as the scene the oracle judges against.
 """
 
 import time
@@ -26,6 +27,9 @@ class Side:
     triangles: object  # tree -> the (N, 3, 3) triangles Embree traces
     # (tree, origins, directions, hits) -> (hits by Embree's triangle index, slack or None)
     match: object
+    # (oracle, tree) -> the scene as given, for the oracle's exact verdict
+    # (None: the triangles Embree traces are it)
+    exact_scene: object = lambda _oracle, _tree: None
 
 
 def _same_hits(_tree, _origins, _directions, hits):
@@ -43,8 +47,11 @@ SIDES = {
     "bsp": _FLAT,
     "bvh": _FLAT,
     # Leaf culling has no two-level trace (InstancedTree.intersect refuses it).
+    # Judged against the instances' exact world triangles (matrix times
+    # vertex), which Embree's flattened float triangles round.
     "two_level": Side("two-level hits (by flattened triangle) vs Embree on the flattened "
-                      "scene", False, lambda tree: tree.flatten(), _flattened_hits),
+                      "scene", False, lambda tree: tree.flatten(), _flattened_hits,
+                      lambda oracle, tree: oracle.instanced_scene(tree)),
 }
 
 
@@ -88,7 +95,8 @@ def compare_with_embree(bsplab, tree, origins, directions, cull, embree_scene=No
     embree_seconds = time.perf_counter() - start
     ours, slack = side.match(tree, origins, directions, ours)
     compare = oracle.compare(ours, theirs, triangles=triangles,
-                             origins=origins, directions=directions, slack=slack)
+                             origins=origins, directions=directions, slack=slack,
+                             scene=side.exact_scene(oracle, tree))
     return {
         "structure": tree.structure,
         "compared": side.compared,

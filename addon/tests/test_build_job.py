@@ -25,6 +25,7 @@ from addon_without_blender import addon_module as _addon_module
 jobs = _addon_module("build_render.job")
 worker = _addon_module("jobs.worker")
 messages = _addon_module("jobs.messages")
+statistics = _addon_module("build_render.statistics")
 
 
 def _spec(camera: bsplab.Camera, width: int, height: int):
@@ -70,9 +71,17 @@ def test_job_builds_renders_and_agrees_with_embree():
     compare = embree["compare"]
     assert compare["rays"] == 48 * 32
     # The tree finds Embree's closest hit on every camera ray, but for those
-    # the oracle explains (grazing an edge, at the ends, degenerate triangles).
-    explained = compare["grazing"] + compare["at_ends"] + compare["degenerate"]
+    # the oracle explains (Embree exactly wrong, grazing an edge, at the
+    # ends, degenerate triangles): none ours exactly wrong or undecided.
+    explained = compare["embree_wrong"] + compare["grazing"] + compare["at_ends"] + \
+        compare["degenerate"]
     assert compare["agree"] + explained == compare["rays"], compare
+    assert compare["bsplab_wrong"] == compare["undecided"] == 0, compare
+    # The panel counts Embree's own errors apart from ours.
+    rows = dict(statistics.embree_rows(embree))
+    assert rows["Embree Wrong"] == "{:,}".format(compare["embree_wrong"])
+    assert rows["BSP Lab Wrong"] == rows["Undecided"] == "0"
+    assert rows["At Edges"] == "{:,}".format(compare["grazing"])
     assert compare["agree"] >= 0.99 * compare["rays"], compare
     assert embree["bsplab_seconds"] > 0 and embree["embree_seconds"] > 0
     messages.check_result(job.result)  # hits > 0: no UserError
@@ -433,4 +442,5 @@ def test_embree_scene_is_reused_with_the_triangles(scene):
     assert embree[1]["embree_build_seconds"] == embree[0]["embree_build_seconds"]
     for e in embree:  # the re-used scene still gives Embree's hits
         c = e["compare"]
-        assert c["agree"] + c["grazing"] + c["at_ends"] + c["degenerate"] == c["rays"], c
+        assert c["agree"] + c["embree_wrong"] + c["grazing"] + c["at_ends"] + \
+            c["degenerate"] == c["rays"], c

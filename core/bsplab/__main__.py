@@ -11,23 +11,45 @@ from pathlib import Path
 import numpy as np
 
 
-def output_file(path, flag: str, example: str) -> Path:
+class DefaultPath(str):
+    """An output path the command chose (an argparse default): its folder
+    is created when missing. One the user gave must name an existing
+    folder (output_file)."""
+
+
+def output_file(path, flag: str, example: str, create_folder: bool = False) -> Path:
     """`path` as a file the command will write: refused up front (before any
-    long work) when it is a directory or lies under a file."""
+    long work) when it is a directory, lies under a file, or - given by the
+    user - lies in a folder that does not exist (a typo there would
+    otherwise create a tree of folders silently). `create_folder`: the
+    folder is the command's own choice (beside another output) and may be
+    created."""
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"{flag} {path} is a directory; give a file name such as "
                          f"{p / example}")
     _under_a_directory(p, flag)
+    if not (create_folder or isinstance(path, DefaultPath)):
+        _folder_exists(p.parent, flag, path)
     return p
 
 
 def output_dir(path, flag: str) -> Path:
+    """`path` as a directory the command will write into (and create); one
+    the user gave must lie in an existing folder."""
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise ValueError(f"{flag} {path} is a file; give a directory")
     _under_a_directory(p, flag)
+    if not isinstance(path, DefaultPath):
+        _folder_exists(p.parent, flag, path)
     return p
+
+
+def _folder_exists(folder: Path, flag: str, path) -> None:
+    if not folder.is_dir():
+        raise ValueError(f"{flag} {path}: the folder {folder} does not exist; create it first "
+                         "(an --out given is never created)")
 
 
 def _under_a_directory(p: Path, flag: str) -> None:
@@ -85,8 +107,9 @@ def cmd_demo(args) -> int:
              f"{emb.last_seconds * 1e3:.1f} ms; ours 1 thread {t1 * 1e3:.1f} ms "
              f"= {emb.last_seconds / t1:.2f}x Embree's speed"),
             ("agreement with Embree",
-             f"{c['agreement'] * 100:.4f}% ({c['grazing']} grazing, "
-             f"{len(c['unexplained'])} unexplained)"),
+             f"{c['agreement'] * 100:.4f}% (disagreeing: {c['embree_wrong']} Embree wrong, "
+             f"{c['grazing']} grazing, {c['bsplab_wrong']} ours wrong, "
+             f"{c['undecided']} undecided)"),
         ]
     else:
         rows.append(("Embree", "embreex not installed: no comparison"))
@@ -104,7 +127,7 @@ def _doc(args, example: str) -> Path | None:
     out = output_file(args.out, "--out", example)
     for suffix in (".csv", ".json"):  # its rows: docs/data/<name>.csv and .json
         output_file((out.parent / "data" / out.stem).with_suffix(suffix), "--out's rows",
-                    out.stem + suffix)
+                    out.stem + suffix, create_folder=True)
     return out
 
 
@@ -173,12 +196,14 @@ def cmd_experiment(args) -> int:
     overrides = {"executor": args.executor, "workers": args.workers,
                  "scheduler": args.scheduler, "repetitions": args.repetitions}
     spec = lab.load_spec(args.spec, **overrides)
+    given = args.out is not None
     out = Path(args.out or Path("out") / "experiments" / spec.name)
     if out.is_dir():
         raise ValueError(f"--out {out} is a directory; give a results path such as "
                          f"{out / spec.name} ({spec.name}.csv and .json are written there)")
     for suffix in (".csv", ".json"):
-        output_file(out.with_suffix(suffix), "--out", spec.name + suffix)
+        output_file(out.with_suffix(suffix), "--out", spec.name + suffix,
+                    create_folder=not given)
     if args.report:
         output_file(args.report, "--report", "report.md")
     rows = lab.run(spec, out, fresh=args.fresh)
@@ -243,8 +268,11 @@ def cmd_agree(args) -> int:
     methods = args.methods if named else list(bsplab.methods())
     agreement.check_k(methods, args.k, named)
     rows = agreement.run(args.scenes, methods, args.rays, k=args.k, seed=args.seed)
-    bad = sum(r["unexplained"] for r in rows)
-    print(f"\n{bad} unexplained disagreements in {len(rows)} scene x method x family trials")
+    bad = sum(r["failing"] for r in rows)
+    wrong = sum(r["embree_wrong"] for r in rows)
+    print(f"\n{bad} failing rays (ours exactly wrong beyond rounding, or undecided) in "
+          f"{len(rows)} scene x method x family trials; {wrong} where Embree is exactly wrong "
+          "and ours is the exact answer")
     return 1 if bad else 0
 
 
@@ -312,7 +340,9 @@ def main(argv=None) -> int:
     d.add_argument("--width", type=whole(1), default=640)
     d.add_argument("--height", type=whole(1), default=480)
     d.add_argument("--threads", type=whole(0), default=0, help="0: all cores")
-    d.add_argument("--out", default="out/demo.png")
+    d.add_argument("--out", default=DefaultPath("out/demo.png"),
+                   help="PNG to write, in an existing folder (default out/demo.png, its "
+                        "folder created)")
     d.set_defaults(func=cmd_demo)
 
     b = sub.add_parser("bench", help="build and trace time against Embree")
@@ -402,7 +432,7 @@ def main(argv=None) -> int:
     q = sub.add_parser("results", help="regenerate docs/results.md and its plots")
     q.add_argument("--quick", action="store_true",
                    help="small scenes and few trials (for CI, under 3 minutes)")
-    q.add_argument("--out", default="docs/results.md")
+    q.add_argument("--out", default=DefaultPath("docs/results.md"))
     q.add_argument("--resume", action="store_true",
                    help="keep the finished trials of an interrupted run")
     q.set_defaults(func=cmd_results)
@@ -420,7 +450,7 @@ def main(argv=None) -> int:
     v.add_argument("--only-gap", action="store_true",
                    help="reuse the last traced record's sections 1-4 and trace only section "
                         "8, the gap to Embree (kd, the best ^Kd, the BVH, Embree)")
-    v.add_argument("--out", default="docs/verdict.md")
+    v.add_argument("--out", default=DefaultPath("docs/verdict.md"))
     v.set_defaults(func=cmd_verdict)
 
     a = sub.add_parser("agree", help="every method against Embree on the ray families "
@@ -443,7 +473,7 @@ def main(argv=None) -> int:
     c.set_defaults(func=cmd_calibrate)
 
     s = sub.add_parser("scenes", help="(re)write the generated scenes as PLY files")
-    s.add_argument("--out", default="scenes")
+    s.add_argument("--out", default=DefaultPath("scenes"))
     s.set_defaults(func=cmd_scenes)
 
     m = sub.add_parser("methods", help="list the tree methods")

@@ -1,8 +1,10 @@
 """Every method's closest hits against Embree's on the ray families.
 
 `python -m bsplab agree --scenes room --methods all` prints, per method and
-family, how many rays disagree with Embree beyond what float rounding at an
-edge or at a segment's end explains. The agreement tests call the same code.
+family, how many rays fail the oracle (oracle.compare's "failing": our answer
+exactly wrong beyond float rounding at an edge or at a segment's end, or
+undecided), beside the rays where Embree is exactly wrong and ours is the
+exact answer. The agreement tests call the same code.
 """
 
 from __future__ import annotations
@@ -84,7 +86,7 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
         rays = FamilyRays(tris, count, seed)
         names = list(rays.rays)
         out(f"\n{scene}: {len(tris):,} triangles, {count:,} rays per family; "
-            "unexplained disagreements (grazing / at segment ends in brackets)")
+            "failing rays (Embree wrong / grazing / at segment ends in brackets)")
         out(f"{'method':<16}" + "".join(f"{n[:14]:>16}" for n in names))
         for method in methods:
             opts = {}
@@ -96,8 +98,11 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
             for name in names:
                 c = res[name]
                 rows.append({"scene": scene, "method": method, "family": name,
-                             "rays": c["rays"], "unexplained": len(c["unexplained"]),
-                             "grazing": c["grazing"], "at_ends": c["at_ends"]})
-                cells.append(f"{len(c['unexplained'])} ({c['grazing']}/{c['at_ends']})")
+                             "rays": c["rays"], "failing": len(c["failing"]),
+                             "bsplab_wrong": c["bsplab_wrong"], "undecided": c["undecided"],
+                             "embree_wrong": c["embree_wrong"], "grazing": c["grazing"],
+                             "at_ends": c["at_ends"]})
+                cells.append(f"{len(c['failing'])} ({c['embree_wrong']}/{c['grazing']}/"
+                             f"{c['at_ends']})")
             out(f"{method:<16}" + "".join(f"{c:>16}" for c in cells))
     return rows

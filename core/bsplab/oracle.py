@@ -7,9 +7,11 @@ import time
 
 import numpy as np
 
+from . import exact
+
 # The oracle's public API, used by the add-on, the tests and the benchmarks.
-__all__ = ["EmbreeTracer", "available", "compare", "edge_distance",
-           "foreign_embree_library", "plane_distance"]
+__all__ = ["EmbreeTracer", "available", "compare", "edge_distance", "exact_first_hit",
+           "foreign_embree_library", "instanced_scene", "judge", "plane_distance"]
 
 
 def available() -> bool:
@@ -150,32 +152,55 @@ def speed_of(directions) -> np.ndarray:
 
 
 def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, origins=None,
-            directions=None, edge_ulps: float = 8.0, tmin=None, tmax=None, slack=None) -> dict:
-    """How far two hit sets agree. A ray agrees when both miss, or both hit
-    the same primitive, or both hit at the same distance within rel_tol
-    (two primitives tie at a shared edge or coincide), or - given the
-    triangles - both hit copies of one triangle (the same vertices bit for
-    bit: `duplicates`; coincident instances flatten to such copies).
+            directions=None, edge_ulps: float = 8.0, tmin=None, tmax=None, slack=None,
+            scene=None) -> dict:
+    """How far two hit sets agree, and, given the triangles and rays, an
+    exact verdict on every ray where they do not. Every ray lands in exactly
+    one of these classes (their counts sum to "rays"):
 
-    Given the triangles and rays, a disagreement is further classed as
-    `grazing` when the ray passes within edge_ulps single-precision ulps (of
-    the coordinates' magnitude; computed in double precision) of the boundary
-    of a triangle that one side hit (or within as many roundings of where
-    the ray crosses its plane, which for a ray almost in the plane is a long
-    way): at an edge, single-precision tests on float32 input may rightly
-    decide either way. Likewise `at_ends`: the
-    triangle one side hit lies, in exact arithmetic, within edge_ulps float
-    roundings of the segment's start (tmin, default 0: a ray that starts on
-    a surface) or end (tmax: a shadow ray that ends on one), where Embree
-    (tnear <= t <= tfar) and a single-precision test may differ; and
-    `degenerate`: the triangle Embree hit has zero area (a segment: we never
-    hit those). Hits on two triangles whose distances differ by less than
-    the coordinates' rounding count as grazing too. Last, `embree_wrong`:
-    in exact rational arithmetic on the float32 ray and triangles, the ray
-    misses the triangle Embree hit and our answer is the exact first hit
-    (or, where we miss, there is none): Embree's own rounding, which grows
-    with the origin's distance from the triangle, decided the ray
-    (exact_first_hit; checked for at most EXACT_ROWS rays a call)."""
+    `agree` - both miss, or both hit the same primitive, or both hit at the
+    same distance within rel_tol (two primitives tie at a shared edge or
+    coincide), or both hit copies of one triangle (the same vertices bit for
+    bit: "duplicates"; coincident instances flatten to such copies).
+
+    The rest ("disagreeing") are judged in exact rational arithmetic
+    (bsplab.exact): the exact first hit of the float32 ray on the scene as
+    given - `scene` (an exact.ExactScene; for an instanced scene
+    instanced_scene(), its world triangles exactly the matrices times the
+    mesh vertices), by default the float32 `triangles` themselves - on our
+    open segment tmin < t < tmax, and on Embree's closed tnear <= t <= tfar.
+
+    `embree_wrong` - our answer is the exact first hit (or, a miss, there is
+    none), and Embree's is not, even by its own closed segment: Embree's
+    float rounding, which grows with the origin's distance from the
+    triangle, or (instanced) the rounding of the flattened scene it was
+    given, decided the ray.
+
+    Of the others, the rounding classes: a float32 test on float input may
+    rightly decide these either way, whatever the exact answer -
+    `grazing`: the ray passes within edge_ulps single-precision ulps (of
+    the coordinates' magnitude; computed in double precision) of the
+    boundary of a triangle one side hit, or within as many roundings of where
+    it crosses its plane (for a ray almost in the plane a long way), or both
+    hit triangles at distances equal within the coordinates' rounding;
+    `at_ends`: the triangle one side hit lies within edge_ulps roundings of
+    the segment's start (tmin, default 0: a ray that starts on a surface) or
+    end (tmax: a shadow ray that ends on one), where Embree's closed segment
+    and our open one differ; `degenerate`: a side hit a triangle of zero
+    area. `slack` (per ray, world units: how far a two-level trace's ray
+    may be from the world ray, InstancedTree.transform_slack) widens the
+    grazing and end tolerances.
+
+    `bsplab_wrong` - our answer is exactly not the first hit, beyond
+    rounding. `undecided` - the rest: our hit is on a triangle the ray lies
+    exactly in the plane of (it has no crossing point to judge:
+    exact.UNDECIDED), or both answers are right by their own segment's rule.
+    Without triangles every disagreeing ray is undecided.
+
+    Counts under each name; index arrays: "disagreeing", "embree_wrong_rays",
+    "bsplab_wrong_rays", "undecided_rays" and "failing" (bsplab_wrong and
+    undecided together: the rays whose answer nothing vouches for, which a
+    test asserts there are none of)."""
     pa, pb = ours["prim"], ref["prim"]
     ta, tb = ours["t"].astype(np.float64), ref["t"].astype(np.float64)
     both_miss = (pa < 0) & (pb < 0)
@@ -247,13 +272,16 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
             near[np.flatnonzero(both)[tie]] = True
             grazing |= near & ~(at_ends | degenerate)
     embree_wrong = np.zeros(len(bad), bool)
-    if len(bad) and triangles is not None and slack is None:
-        rest = np.flatnonzero(~(grazing | at_ends | degenerate))[:EXACT_ROWS]
-        for j in rest:  # lo, hi: the disagreeing rays' limits, above
-            r = bad[j]
-            embree_wrong[j] = _embree_exactly_wrong(triangles, int(pa[r]), int(pb[r]),
-                                                    origins[r], directions[r], float(lo[j]),
-                                                    float(hi[j]))
+    bsplab_wrong = np.zeros(len(bad), bool)
+    if len(bad) and triangles is not None:
+        ours_v, theirs_v = judge(scene if scene is not None else exact.ExactScene.triangles(
+            triangles), pa[bad], pb[bad], origins[bad], directions[bad], lo, hi)
+        embree_wrong = (ours_v == exact.RIGHT) & (theirs_v == exact.WRONG)
+        grazing &= ~embree_wrong
+        at_ends &= ~embree_wrong
+        degenerate &= ~embree_wrong
+        bsplab_wrong = (ours_v == exact.WRONG) & ~(grazing | at_ends | degenerate)
+    undecided = ~(embree_wrong | grazing | at_ends | degenerate | bsplab_wrong)
     n = len(pa)
     return {
         "rays": n,
@@ -265,14 +293,42 @@ def compare(ours: dict, ref: dict, rel_tol: float = 1e-4, *, triangles=None, ori
         "hit_only_ours": int(((pa >= 0) & (pb < 0)).sum()),
         "hit_only_ref": int(((pa < 0) & (pb >= 0)).sum()),
         "different": int((both_hit & ~same_prim & ~close_t & ~same_surface).sum()),
+        "embree_wrong": int(embree_wrong.sum()),
         "grazing": int(grazing.sum()),
         "at_ends": int(at_ends.sum()),
         "degenerate": int(degenerate.sum()),
-        "embree_wrong": int(embree_wrong.sum()),
+        "bsplab_wrong": int(bsplab_wrong.sum()),
+        "undecided": int(undecided.sum()),
         "disagreeing": bad,
-        "unexplained": bad[~(grazing | at_ends | degenerate | embree_wrong)]
-        if triangles is not None else bad,
+        "embree_wrong_rays": bad[embree_wrong],
+        "bsplab_wrong_rays": bad[bsplab_wrong],
+        "undecided_rays": bad[undecided],
+        "failing": bad[bsplab_wrong | undecided],
     }
+
+
+def judge(scene, ours, theirs, origins, directions, tmin, tmax) -> tuple[np.ndarray, np.ndarray]:
+    """Per ray, the exact verdict (exact.RIGHT, WRONG or UNDECIDED) on our
+    answer `ours` (prim, -1 a miss) on the open segment tmin < t < tmax, and
+    on Embree's `theirs` on the closed one, against `scene` (an
+    exact.ExactScene)."""
+    ours_v = np.zeros(len(ours), np.int8)
+    theirs_v = np.zeros(len(ours), np.int8)
+    lo = np.broadcast_to(np.asarray(0.0 if tmin is None else tmin, np.float64), (len(ours),))
+    hi = np.broadcast_to(np.asarray(np.inf if tmax is None else tmax, np.float64), (len(ours),))
+    for i in range(len(ours)):
+        ray = exact.RayVerdict(scene, origins[i], directions[i], lo[i], hi[i])
+        ours_v[i] = ray.verdict(int(ours[i]))
+        theirs_v[i] = ray.verdict(int(theirs[i]), closed=True)
+    return ours_v, theirs_v
+
+
+def instanced_scene(tree) -> "exact.ExactScene":
+    """The exact world triangles of a two-level tree's instances (the scene
+    as given: float64 matrices times the float32 mesh vertices), in the
+    order of its flatten(): compare's `scene` for an instanced trace."""
+    return exact.ExactScene.instanced([t.triangles for t in tree.meshes], tree.mesh_index,
+                                      tree.matrices)
 
 
 # Rays closer than this (the cosine of their angle to the normal) to a
@@ -408,55 +464,13 @@ def _exactly_past_embrees_triangle(tris, ours: int, theirs: int, origin, directi
                                                                          1e-30)
 
 
-# compare() decides at most this many disagreeing rays a call exactly (each
-# costs a pass over the scene's triangles in double, then fractions).
-EXACT_ROWS = 16
-
-
-def _embree_exactly_wrong(triangles, ours: int, theirs: int, origin, direction, tmin: float,
-                          tmax: float) -> bool:
-    """Whether, exactly, the ray misses the triangle Embree hit (within the
-    segment) and our answer is the first hit (exact_first_hit)."""
-    def within(t):
-        return t is not None and tmin <= t <= tmax
-    if theirs >= 0 and within(exact_hit_t(triangles[theirs], origin, direction)):
-        return False
-    first, t_first = exact_first_hit(triangles, origin, direction, tmin, tmax)
-    if ours < 0:
-        return first < 0
-    t_ours = exact_hit_t(triangles[ours], origin, direction)
-    return within(t_ours) and t_first is not None and t_ours == t_first
-
-
 def exact_first_hit(triangles, origin, direction, tmin: float = 0.0, tmax: float = np.inf):
-    """The first triangle the ray meets within [tmin, tmax], exactly
-    (exact_hit_t), and its t; (-1, None) when it meets none. Candidates are
-    found in double precision with a wide margin (any triangle the ray
-    passes within 1e-6 of, in barycentric terms, or nearly parallel to),
-    then decided in fractions."""
-    tri = np.asarray(triangles, np.float64)
-    o = np.asarray(origin, np.float32).astype(np.float64)
-    d = np.asarray(direction, np.float32).astype(np.float64)
-    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    p = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    s = o - tri[:, 0]
-    q = np.cross(s, e1)
-    with np.errstate(all="ignore"):
-        u = np.einsum("ij,ij->i", s, p) / det
-        v = (q @ d) / det
-        t = np.einsum("ij,ij->i", e2, q) / det
-    margin = 1e-6
-    scale = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1) * np.linalg.norm(d)
-    nearly_parallel = ~(np.abs(det) > 1e-9 * scale)
-    candidate = nearly_parallel | ((u >= -margin) & (v >= -margin) & (u + v <= 1 + margin)
-                                   & (t > 0))
-    best, best_t = -1, None
-    for k in np.flatnonzero(candidate):
-        tk = exact_hit_t(triangles[k], origin, direction)
-        if tk is not None and tmin <= tk <= tmax and (best_t is None or tk < best_t):
-            best, best_t = int(k), tk
-    return best, best_t
+    """The first triangle the ray meets on the open segment tmin < t < tmax,
+    exactly (bsplab.exact: a proven double-precision filter, then integers),
+    and its t as a Fraction; the smallest index of a tie; (-1, None) when it
+    meets none."""
+    return exact.RayVerdict(exact.ExactScene.triangles(triangles), origin, direction,
+                            tmin, tmax).first_hit()
 
 
 def exact_hit_t(triangle, origin, direction):

@@ -83,7 +83,7 @@ def family_rows(tree, embree, tris, families: dict, rounds: int) -> list[dict]:
             "x_moved": float(h["steps"].mean() / max(moved["steps"].mean(), 1e-9)),
             "leaks": len(oracle.leaks(h, ref, triangles=tris, origins=o, directions=d,
                                       tmax=tmax)),
-            "unexplained": len(c["unexplained"]),
+            "unexplained": len(c["failing"]),
             "paths": path_differences(tree, o, d, tmax, h),
             "vs_embree": times.ratio("ours", "embree"),
         })

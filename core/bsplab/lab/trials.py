@@ -234,13 +234,14 @@ class TwoLevelTrial:
 
 def _unexplained(hits: dict, embree_hits: dict, tris, rays: Rays,
                  slack=None) -> tuple[int, int]:
-    """Rays whose answer differs from Embree's beyond ties and grazing edges, and
-    the grazing ones; `slack` (a two-level trial's) gives the transform's rounding."""
+    """The rays oracle.compare finds failing (ours exactly wrong beyond
+    rounding, or undecided: the "unexplained" column), and the grazing ones;
+    `slack` (a two-level trial's) gives the transform's rounding."""
     from .. import oracle
     c = oracle.compare(hits, embree_hits, triangles=tris, origins=rays.origins,
                        directions=rays.directions,
                        slack=None if slack is None else slack(rays, hits, embree_hits))
-    return len(c["unexplained"]), c["grazing"]
+    return len(c["failing"]), c["grazing"]
 
 
 def _row(trial: Trial, tris, s: dict, rays: Rays, times: PairedTimes, embree,

@@ -252,6 +252,50 @@ def test_cli_refuses_bad_paths_in_one_line(tmp_path, capsys, argv, message):
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
+# Every subcommand's --out (and experiment's --report) in a folder that does
+# not exist: refused before any work, and nothing created.
+MISSING_FOLDER_CASES = [
+    ["demo", "--out", "{m}/x.png"],
+    ["bench", "--out", "{m}/b.md"],
+    ["bench-family", "--out", "{m}/b.md"],
+    ["bench-cull", "--out", "{m}/b.md"],
+    ["bench-build", "--out", "{m}/b.md"],
+    ["bench-instanced", "--out", "{m}/b.md"],
+    ["experiment", "{d}/spec.toml", "--out", "{m}/run"],
+    ["experiment", "{d}/spec.toml", "--report", "{m}/r.md"],
+    ["report", "{d}/foreign.csv", "--out", "{m}/r.md"],
+    ["results", "--out", "{m}/results.md"],
+    ["verdict", "--out", "{m}/verdict.md"],
+    ["scenes", "--out", "{m}/scenes"],
+]
+
+
+@pytest.mark.parametrize("argv", MISSING_FOLDER_CASES, ids=lambda a: " ".join(a[:1] + a[-2:-1]))
+def test_cli_refuses_an_out_in_a_missing_folder(tmp_path, capsys, argv):
+    d, missing = tmp_path, tmp_path / "no" / "such"
+    (d / "spec.toml").write_text('scenes = ["room"]\nmethods = ["kd"]\n')
+    (d / "foreign.csv").write_text("")
+    code, err = run_cli(capsys, *[a.format(d=d, m=missing) for a in argv])
+    flag = argv[-2]
+    assert code == 2, err
+    assert err.startswith(f"error: {flag} {missing}/") and \
+        f"the folder {missing} does not exist; create it first" in err, err
+    assert err.count("\n") == 1
+    assert not (d / "no").exists()
+
+
+def test_a_default_out_gets_its_folder_and_a_given_one_must_exist(tmp_path):
+    from bsplab.__main__ import DefaultPath, output_dir, output_file
+    new = tmp_path / "new" / "x.png"
+    assert output_file(DefaultPath(str(new)), "--out", "x.png") == new  # created on writing
+    with pytest.raises(ValueError, match="does not exist"):
+        output_file(str(new), "--out", "x.png")
+    assert output_file(str(tmp_path / "x.png"), "--out", "x.png") == tmp_path / "x.png"
+    assert output_dir(str(tmp_path / "scenes"), "--out") == tmp_path / "scenes"
+    with pytest.raises(ValueError, match="does not exist"):
+        output_dir(str(tmp_path / "new" / "scenes"), "--out")
+
+
 def test_cli_error_is_one_line_without_traceback(tmp_path):
     import subprocess
     import sys

@@ -55,10 +55,10 @@ def assert_agrees(scene_id: str, method: str, k: int | None, count: int,
     tree = bsplab.build(rays.triangles, method=method, **({} if k is None else {"k": k}),
                         **(options or {}))
     for name, c in rays.check(tree).items():
-        bad = c["unexplained"][:4]
+        bad = c["failing"][:4]
         h, ref = c["hits"], rays.rays[name][3]
-        assert len(c["unexplained"]) == 0, (
-            f"{scene_id} {method} k={k}: {len(c['unexplained'])} of {c['rays']} {name} rays "
+        assert len(c["failing"]) == 0, (
+            f"{scene_id} {method} k={k}: {len(c['failing'])} of {c['rays']} {name} rays "
             f"disagree with Embree, e.g. rays {bad}: ours {h['prim'][bad]} t {h['t'][bad]}, "
             f"Embree {ref['prim'][bad]} t {ref['t'][bad]}")
         leak = c["leaks"][:4]
@@ -73,9 +73,9 @@ def assert_agrees(scene_id: str, method: str, k: int | None, count: int,
     for name, c in rays.check(tree, cull=False, counters=False).items():
         assert len(c["leaks"]) <= KNOWN_LEAKS.get((scene_id, name), 0), (
             scene_id, method, k, name, "hits-only leaks", c["leaks"][:4])
-        assert len(c["unexplained"]) == 0, (
-            f"{scene_id} {method} k={k} hits-only: {len(c['unexplained'])} of {c['rays']} "
-            f"{name} rays disagree with Embree, e.g. rays {c['unexplained'][:4]}")
+        assert len(c["failing"]) == 0, (
+            f"{scene_id} {method} k={k} hits-only: {len(c['failing'])} of {c['rays']} "
+            f"{name} rays disagree with Embree, e.g. rays {c['failing'][:4]}")
 
 
 def ks(method: str) -> list[int | None]:
@@ -160,7 +160,7 @@ def test_the_room_from_outside_and_inside(method):
         o, d, tmax = ray_families.family(name, tris, 20_000, seed=5)
         c = oracle.compare(tree.intersect(o, d), emb.intersect(o, d), triangles=tris,
                            origins=o, directions=d)
-        assert len(c["unexplained"]) == 0 and c["grazing"] <= 2, (name, c["unexplained"][:5])
+        assert len(c["failing"]) == 0 and c["grazing"] <= 2, (name, c["failing"][:5])
 
 
 def test_rays_in_a_plane_see_both_sides():
@@ -173,7 +173,7 @@ def test_rays_in_a_plane_see_both_sides():
     for method in ("rbsp", "bsp_wn", "kd"):
         h = bsplab.build(tris, method=method).intersect(o, d)
         c = oracle.compare(h, emb, triangles=tris, origins=o, directions=d)
-        assert len(c["unexplained"]) == 0, method
+        assert len(c["failing"]) == 0, method
 
 
 def test_families_are_deterministic_and_shaped():
