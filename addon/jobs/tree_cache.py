@@ -33,10 +33,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# Build options that change how a tree is built, never the tree: the builder
-# gives the same nodes on any number of threads, and the memory limit only
-# decides whether a build may finish. (The tests check both claims.)
-NOT_TREE_OPTIONS = frozenset({"threads", "memory_limit_mb"})
+from .. import backend
+
+
+def not_tree_options():
+    """Build options that change how a tree is built, never the tree
+    (`bsplab.method_table.NOT_TREE_OPTIONS`, named once there): the builder
+    gives the same nodes on any number of threads, and the memory limit only
+    decides whether a build may finish. (The tests check both claims.)"""
+    return frozenset(backend.submodule("method_table").NOT_TREE_OPTIONS)
 
 # 16 of SHA-256's 32 bytes: a collision between two scenes of one session
 # is out of reach.
@@ -68,8 +73,9 @@ class TreeKey:
 
 def tree_key(triangles, method, options):
     """The TreeKey of a build of `triangles` with `method` and `options`."""
+    skipped = not_tree_options()
     kept = tuple(sorted((name, value) for name, value in options.items()
-                        if name not in NOT_TREE_OPTIONS))
+                        if name not in skipped))
     return TreeKey(geometry_digest(triangles), method, kept)
 
 

@@ -38,7 +38,7 @@ def same_tree(one, other):
     """Whether two TreeChoices give the same tree (see tree_cache.tree_key)."""
     def kept(choice):
         return {name: value for name, value in choice.options.items()
-                if name not in tree_cache.NOT_TREE_OPTIONS}
+                if name not in tree_cache.not_tree_options()}
     return one.method == other.method and kept(one) == kept(other)
 
 
