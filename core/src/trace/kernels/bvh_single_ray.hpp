@@ -88,6 +88,24 @@ struct BvhRay {
         exit = std::min(std::min(std::min(s1, tfx), tfy), tfz);
         return enter <= exit;
     }
+
+    // The ray of walk `w` (single_ray.hpp's RayWalk), clipped to the root's
+    // box: its range there [t0, t1], and the crossing errors of that range.
+    // False when it misses the box.
+    bool start(const TreeView& tree, const RayWalk& w, float& t0, float& t1) {
+        t0 = w.s_lo;
+        t1 = w.s_hi;
+        if (!clip_to_box(tree.bvh_nodes[0].box(), w.walk.org, w.idir, w.dir, w.walk.org_err, t0,
+                         t1))
+            return false;
+        axis_crossing_errors(w.walk, t0, t1, err);
+        for (int k = 0; k < 3; ++k) {
+            org[k] = w.walk.org[k];
+            idir[k] = w.idir[k];
+            neg[k] = std::signbit(w.dir[k]);
+        }
+        return true;
+    }
 };
 
 // Entries of the traversal stack: one per level of the tree at most
@@ -138,29 +156,18 @@ struct BvhPairTest {
 template <class Counters>
 void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                    Closest& hit, Counters& count) {
-    hit.t = tmax;
-    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
-    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
-    const WalkStart walk(tree, ray_org, dir, idir);
-    const double t_e = walk.t_e;
-    const float* org = walk.org;
-    hit.reach = walk_reach(tmax, t_e);
-    const float s_lo = walk_lower(tmin, t_e), s_hi = walk_upper(tmax, t_e);
+    const RayWalk rw(tree, o, d, tmin, tmax, hit);
+    const double t_e = rw.walk.t_e;
+    const float *dir = rw.dir, *org = rw.walk.org;
+    const float s_lo = rw.s_lo, s_hi = rw.s_hi;
     const BvhNode* nodes = tree.bvh_nodes;
-    float t0 = s_lo, t1 = s_hi;
-    count.box_test(1);
-    if (!clip_to_box(nodes[0].box(), org, idir, dir, walk.org_err, t0, t1)) return;
+    float t0, t1;
     BvhRay ray;
-    axis_crossing_errors(walk, t0, t1, ray.err);
-    for (int k = 0; k < 3; ++k) {
-        ray.org[k] = org[k];
-        ray.idir[k] = idir[k];
-        ray.neg[k] = std::signbit(dir[k]);
-    }
-    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
-                          walk.test_t);
+    count.box_test(1);
+    if (!ray.start(tree, rw, t0, t1)) return;
+    const ShearedRay sray = rw.test_ray();
     const BvhPairTest pair(ray);
-    const float pad = tree.cull_pad + walk.slack;
+    const float pad = tree.cull_pad + rw.walk.slack;
     const uint32_t* refs = tree.refs;
     const Triangle* tris = tree.tris;
     StackEntry stack[kBvhStack];

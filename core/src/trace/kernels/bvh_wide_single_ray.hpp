@@ -170,28 +170,17 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                                                               const Vec3& d, float tmin,
                                                               float tmax, Closest& hit,
                                                               Counters& count_) {
-    hit.t = tmax;
-    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
-    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
-    const WalkStart walk(tree, ray_org, dir, idir);
-    const double t_e = walk.t_e;
-    const float* org = walk.org;
-    hit.reach = walk_reach(tmax, t_e);
-    const float s_lo = walk_lower(tmin, t_e), s_hi = walk_upper(tmax, t_e);
-    float t0 = s_lo, t1 = s_hi;
-    count_.box_test(1);
-    if (!clip_to_box(tree.bvh_nodes[0].box(), org, idir, dir, walk.org_err, t0, t1)) return;
+    const RayWalk rw(tree, o, d, tmin, tmax, hit);
+    const double t_e = rw.walk.t_e;
+    const float *dir = rw.dir, *org = rw.walk.org;
+    const float s_lo = rw.s_lo, s_hi = rw.s_hi;
+    float t0, t1;
     BvhRay ray;
-    axis_crossing_errors(walk, t0, t1, ray.err);
-    for (int k = 0; k < 3; ++k) {
-        ray.org[k] = org[k];
-        ray.idir[k] = idir[k];
-        ray.neg[k] = std::signbit(dir[k]);
-    }
-    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
-                          walk.test_t);
+    count_.box_test(1);
+    if (!ray.start(tree, rw, t0, t1)) return;
+    const ShearedRay sray = rw.test_ray();
     const BvhLaneTest lanes(ray);
-    const float pad = tree.cull_pad + walk.slack;
+    const float pad = tree.cull_pad + rw.walk.slack;
     const BvhLeafTriangle* leaf_tris = tree.bvh_leaf_tris;
     const BvhWideNode* nodes = tree.bvh_wide;
     const uint32_t* binary_of = tree.bvh_wide_binary;

@@ -5,6 +5,7 @@
 // linkage: every level gets its own copy, and none leaks into another.
 #pragma once
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -71,6 +72,35 @@ struct Closest {
         u = u_new;
         v = v_new;
         reach = walk_reach(t_new, t_e);
+    }
+};
+
+// What every walk of one ray (trace_one here, the BVH's walks) starts from:
+// the ray as plain arrays (the axis is a run-time index in the hot loops),
+// its walk start (walk_start.hpp), the walk's range [s_lo, s_hi] for the
+// ray's [tmin, tmax], and the closest hit reset to tmax.
+struct RayWalk {
+    float dir[3], idir[3];
+    WalkStart walk;
+    float s_lo, s_hi;
+
+    RayWalk(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+            Closest& hit)
+        : dir{d.x, d.y, d.z},
+          idir{1.0f / d.x, 1.0f / d.y, 1.0f / d.z},
+          walk(tree, std::array<float, 3>{o.x, o.y, o.z}.data(), dir, idir),
+          s_lo(walk_lower(tmin, walk.t_e)),
+          s_hi(walk_upper(tmax, walk.t_e)) {
+        hit.t = tmax;
+        hit.reach = walk_reach(tmax, walk.t_e);
+    }
+
+    // The triangle test's ray: from the walk origin for a far ray
+    // (ShearedRay::t_offset, kFarTestSizes), with the precision of a point
+    // inside the box; else from the ray's own origin.
+    ShearedRay test_ray() const {
+        return ShearedRay(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]),
+                          Vec3(dir[0], dir[1], dir[2]), walk.test_t);
     }
 };
 
@@ -330,25 +360,17 @@ template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove
           class Counters>
 bool trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                Closest& hit, Counters& count) {
-    hit.t = tmax;
-    // Plain arrays: the axis is a run-time index in the hot loop.
-    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
-    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
     // The walk runs from the ray's entry into the scene box (walk_start.hpp):
     // its t0, t1 and crossings are s = t - t_e; the hits keep the ray's t.
-    const WalkStart walk(tree, ray_org, dir, idir);
+    const RayWalk ray(tree, o, d, tmin, tmax, hit);
+    const WalkStart& walk = ray.walk;
+    const float *dir = ray.dir, *idir = ray.idir, *org = walk.org;
     const double t_e = walk.t_e;
-    const float* org = walk.org;
-    hit.reach = walk_reach(tmax, t_e);
-    float t0 = walk_lower(tmin, t_e), t1 = walk_upper(tmax, t_e);
+    float t0 = ray.s_lo, t1 = ray.s_hi;
     if (!clip_to_box(tree.bounds, org, idir, dir, walk.org_err, t0, t1)) return true;
     float axis_err[3];
     axis_crossing_errors(walk, t0, t1, axis_err);
-    // A far ray's triangle test starts there too (ShearedRay::t_offset,
-    // kFarTestSizes): the same watertight test, with the precision of a
-    // point inside the box.
-    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
-                          walk.test_t);
+    const ShearedRay sray = ray.test_ray();
     // Locals, so that the hot loop keeps them in registers.
     const Node* nodes = tree.nodes;
     const Plane* planes = tree.planes;
