@@ -14,6 +14,7 @@
 #include "bindings/arrays.hpp"
 #include "bindings/bindings.hpp"
 #include "bindings/ray_batches.hpp"
+#include "frame.hpp"
 #include "inspect/tree_geometry.hpp"  // world_plane
 #include "trace/cpu_dispatch.hpp"
 #include "trace/ray_order.hpp"
@@ -72,8 +73,8 @@ nb::dict trace_path(const Tree& tree, std::array<float, 3> o, std::array<float, 
         }
         const BvhNode& b = tree.bvh_nodes[node[i]];
         for (int k = 0; k < 3; ++k) {
-            box_lo[3 * i + k] = double(b.lo[k]) / tree.scale;
-            box_hi[3 * i + k] = double(b.hi[k]) / tree.scale;
+            box_lo[3 * i + k] = to_world(b.lo[k], k, tree.offset, tree.scale);
+            box_hi[3 * i + k] = to_world(b.hi[k], k, tree.offset, tree.scale);
         }
     }
     for (size_t i = 0; i < m; ++i) {

@@ -240,10 +240,10 @@ void trace_bvh_rays(const TreeView& view, const RayBatch& rays, const HitBatch& 
         Counters count;
         const float tmin = rays.tmin[i * rays.tmin_stride];
         const float tmax = rays.tmax[i * rays.tmax_stride];
-        if (scale == 1.0) {
+        if (scale == 1.0 && !view.moved) {
             trace_one(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c, count);
         } else {
-            const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+            const Vec3 so = to_tree_space(view, o);
             trace_one(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale), float(tmax * scale),
                       c, count);
             c.t = float(c.t * inv_scale);

@@ -388,13 +388,14 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
         const float tmin = batch.tmin[k * batch.tmin_stride];
         const float tm = batch.tmax[k * batch.tmax_stride];
         for (int c = 0; c < 3; ++c) r.dir[c][i] = d[c];
-        if (scale == 1.0) {
+        if (scale == 1.0 && !tree.moved) {
             for (int c = 0; c < 3; ++c) r.org[c][i] = o[c];
             r.tmin[i] = tmin, tmax[i] = tm;
         } else {
-            // Into the tree's scaled space, as trace_single_rays: o and the
-            // range scale, d does not.
-            for (int c = 0; c < 3; ++c) r.org[c][i] = float(o[c] * scale);
+            // Into the tree's frame and scaled space, as trace_single_rays:
+            // o moves and scales, the range scales, d does neither.
+            const Vec3 so = to_tree_space(tree, o);
+            for (int c = 0; c < 3; ++c) r.org[c][i] = so[c];
             r.tmin[i] = float(tmin * scale), tmax[i] = float(tm * scale);
         }
     }

@@ -618,13 +618,14 @@ inline bool trace_ray_at(const TreeView& view, const RayBatch& rays, const HitBa
     Counters count;
     const float tmin = rays.tmin[i * rays.tmin_stride];
     const float tmax = rays.tmax[i * rays.tmax_stride];
-    if (scale == 1.0) {
+    if (scale == 1.0 && !view.moved) {
         if (!trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, kInPlane>(
                 view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c, count))
             return false;
     } else {
-        // Into the tree's scaled space: o and the range scale, d does not.
-        const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+        // Into the tree's frame and scaled space: o moves and scales, the
+        // range scales, d does neither.
+        const Vec3 so = to_tree_space(view, o);
         if (!trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, kInPlane>(
                 view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale), float(tmax * scale), c,
                 count))
