@@ -212,11 +212,11 @@ void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmi
                 count.test(p);
                 TriangleHit th;
                 const Triangle& tri = tris[p];
-                if (intersect_triangle(sray, tri, tmin, hit.t, th, int32_t(p) < hit.prim) &&
+                if (intersect_triangle(sray, tri, tmin, hit.t, th, hit.td, int32_t(p) < hit.prim) &&
                     leaf_accepts(tri.bounds(), org, dir, t0, std::min(t1, hit.reach), th.t, t_e,
                                  pad)) {
                     count.hit(th.t);
-                    hit.take(th.t, p, th.u, th.v, t_e);
+                    hit.take(th.t, th.td, p, th.u, th.v, t_e);
                 } else {
                     count.miss();
                 }

@@ -13,7 +13,8 @@
 // face plane) and where both are zeros, as the pair test's accumulator does.
 // The leaves are the binary tree's, so a leaf is entered with the same range
 // and accepts the same hits; only the order of the visits differs, and the
-// closest hit with its tie rule (the smallest triangle index of equal t)
+// closest hit with its tie rule (of equal t the nearer in double, then the
+// smallest triangle index)
 // does not depend on the order.
 //
 // Every path walks it - hits only, packets, counting, trace_path - so that
@@ -269,11 +270,11 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                 count_.test(p);
                 TriangleHit th;
                 const Triangle& tri = leaf.tri;
-                if (intersect_triangle(sray, tri, tmin, hit.t, th, int32_t(p) < hit.prim) &&
+                if (intersect_triangle(sray, tri, tmin, hit.t, th, hit.td, int32_t(p) < hit.prim) &&
                     leaf_accepts(tri.bounds(), org, dir, t0, std::min(t1, hit.reach), th.t, t_e,
                                  pad)) {
                     count_.hit(th.t);
-                    hit.take(th.t, p, th.u, th.v, t_e);
+                    hit.take(th.t, th.td, p, th.u, th.v, t_e);
                 } else {
                     count_.miss();
                 }

@@ -51,27 +51,32 @@ struct Mailbox {
 };
 
 // The closest hit so far. Of equally close hits (the same float t) the
-// smallest triangle index wins, on every path (counting or not, culling or
-// not, SIMD leaves, packets, any thread count), so which leaf finds a hit
-// first never changes the answer: two triangles sharing an edge the ray
-// meets exactly, or coinciding, give one answer everywhere.
+// nearer in double (td, ray_distance) wins, and of those the smallest
+// triangle index, on every path (counting or not, culling or not, SIMD
+// leaves, packets, any thread count), so which leaf finds a hit first never
+// changes the answer: two triangles sharing an edge the ray meets exactly,
+// or coinciding, give one answer everywhere. (By the float t alone the
+// early exit had to go on through every cell a hit could round to the same
+// float in: from 10^7 scene sizes away, half the scene; walk_reach_exact.)
 struct Closest {
     float t;
     int32_t prim = -1;
     float u = 0, v = 0;
+    double td = -INFINITY;  // no hit yet: nothing ties with tmax
     // The walk parameter beyond which no cell can hold a hit as close
-    // (walk_reach): the early exit's and the cull box's end.
+    // (walk_reach, walk_reach_exact): the early exit's and the cull box's end.
     float reach;
 
-    bool beaten_by(float t_new, uint32_t p) const {
-        return t_new < t || (t_new == t && int32_t(p) < prim);
+    bool beaten_by(float t_new, double td_new, uint32_t p) const {
+        return t_new < t || (t_new == t && (td_new < td || (td_new == td && int32_t(p) < prim)));
     }
-    void take(float t_new, uint32_t p, float u_new, float v_new, double t_e) {
+    void take(float t_new, double td_new, uint32_t p, float u_new, float v_new, double t_e) {
         t = t_new;
+        td = td_new;
         prim = int32_t(p);
         u = u_new;
         v = v_new;
-        reach = walk_reach(t_new, t_e);
+        reach = walk_reach_exact(td_new, t_e);
     }
 };
 
@@ -236,15 +241,16 @@ __attribute__((noinline)) BSPLAB_KERNEL_FLATTEN void intersect_leaf_hits_only(
                 const uint32_t box = kBoxes == LeafBoxes::Triangle ? p : node.first + first + lane;
                 if (seg.misses(tree.boxes[box])) continue;
             }
-            const float t = float(ray_distance(tree.tris[p], sray));
-            if (!(t > tmin && hit.beaten_by(t, p))) continue;
+            const double td = ray_distance(tree.tris[p], sray);
+            const float t = float(td);
+            if (!(t > tmin && hit.beaten_by(t, td, p))) continue;
             if (tree.box_kind != LeafBoxes::None &&
                 !leaf_accepts(culling_box(tree, p, node.first + first + lane), org, dir, t0,
                               std::min(t1, hit.reach), t, t_e, pad))
                 continue;
             float u, v;
             barycentrics(e.U[lane], e.V[lane], e.W[lane], u, v);
-            hit.take(t, p, u, v, t_e);
+            hit.take(t, td, p, u, v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
                 seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         }
@@ -291,7 +297,8 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         }
         count.test(p);
         TriangleHit th;
-        bool accepted = intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim);
+        bool accepted = intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, hit.td,
+                                           int32_t(p) < hit.prim);
         if (accepted && tree.box_kind != LeafBoxes::None &&
             !leaf_accepts(culling_box(tree, p, node.first + i), org, dir, t0,
                           std::min(t1, hit.reach), th.t, t_e, pad)) {
@@ -300,7 +307,7 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         }
         if (accepted) {
             count.hit(th.t);
-            hit.take(th.t, p, th.u, th.v, t_e);
+            hit.take(th.t, th.td, p, th.u, th.v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
                 seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         } else {
