@@ -69,15 +69,16 @@ def fuzz_settings(n: int):
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
-# Where the scenes lie: at the origin and off it.
-OFFSETS = [(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]
+# Where the scenes lie: at the origin, off it, and far from it in scene
+# sizes, where the trees build and walk in a local frame (core/src/frame.hpp).
+OFFSETS = [(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0), (1e6, -3e6, 2e5), (-1e7, 0, 5e6)]
 
 
 def scene_specs_of(parts=None, **fields) -> st.SearchStrategy:
     """Scene specs: up to five parts (of fuzz.KINDS unless `parts`), at every
     scale and offset, with the method's `fields`."""
     return st.fixed_dictionaries({
-        "parts": parts or st.lists(part(), min_size=1, max_size=5),
+        "parts": parts if parts is not None else st.lists(part(), min_size=1, max_size=5),
         "scale_exp": st.integers(-3, 3),
         "offset": st.sampled_from(OFFSETS),
         **fields,
