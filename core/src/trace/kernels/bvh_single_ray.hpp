@@ -108,6 +108,26 @@ struct BvhRay {
     }
 };
 
+// What both BVH walks (this file's, bvh_wide_single_ray.hpp's) start from:
+// the ray's walk (RayWalk), its box test's ray clipped to the root's box
+// over [t0, t1] (in_box false when it misses), the triangle test's ray and
+// the leaves' box padding (the builders' and the test's displacement).
+struct BvhWalkStart {
+    RayWalk rw;
+    BvhRay ray;
+    float t0 = 0, t1 = 0;
+    bool in_box;
+    ShearedRay sray;
+    float pad;
+
+    BvhWalkStart(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+                 Closest& hit)
+        : rw(tree, o, d, tmin, tmax, hit),
+          in_box(ray.start(tree, rw, t0, t1)),
+          sray(rw.test_ray()),
+          pad(tree.cull_pad + rw.walk.slack) {}
+};
+
 // Entries of the traversal stack: one per level of the tree at most
 // (kBvhMaxDepth, builders/bvh_build.hpp, which the builder enforces).
 constexpr int kBvhStack = 64;
@@ -156,18 +176,16 @@ struct BvhPairTest {
 template <class Counters>
 void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                    Closest& hit, Counters& count) {
-    const RayWalk rw(tree, o, d, tmin, tmax, hit);
-    const double t_e = rw.walk.t_e;
-    const float *dir = rw.dir, *org = rw.walk.org;
-    const float s_lo = rw.s_lo, s_hi = rw.s_hi;
-    const BvhNode* nodes = tree.bvh_nodes;
-    float t0, t1;
-    BvhRay ray;
+    const BvhWalkStart w(tree, o, d, tmin, tmax, hit);
     count.box_test(1);
-    if (!ray.start(tree, rw, t0, t1)) return;
-    const ShearedRay sray = rw.test_ray();
-    const BvhPairTest pair(ray);
-    const float pad = tree.cull_pad + rw.walk.slack;
+    if (!w.in_box) return;
+    const double t_e = w.rw.walk.t_e;
+    const float *dir = w.rw.dir, *org = w.rw.walk.org;
+    const float s_lo = w.rw.s_lo, s_hi = w.rw.s_hi, pad = w.pad;
+    const ShearedRay& sray = w.sray;
+    float t0 = w.t0, t1 = w.t1;
+    const BvhNode* nodes = tree.bvh_nodes;
+    const BvhPairTest pair(w.ray);
     const uint32_t* refs = tree.refs;
     const Triangle* tris = tree.tris;
     StackEntry stack[kBvhStack];

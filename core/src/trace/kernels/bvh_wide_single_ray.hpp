@@ -171,17 +171,15 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                                                               const Vec3& d, float tmin,
                                                               float tmax, Closest& hit,
                                                               Counters& count_) {
-    const RayWalk rw(tree, o, d, tmin, tmax, hit);
-    const double t_e = rw.walk.t_e;
-    const float *dir = rw.dir, *org = rw.walk.org;
-    const float s_lo = rw.s_lo, s_hi = rw.s_hi;
-    float t0, t1;
-    BvhRay ray;
+    const BvhWalkStart w(tree, o, d, tmin, tmax, hit);
     count_.box_test(1);
-    if (!ray.start(tree, rw, t0, t1)) return;
-    const ShearedRay sray = rw.test_ray();
-    const BvhLaneTest lanes(ray);
-    const float pad = tree.cull_pad + rw.walk.slack;
+    if (!w.in_box) return;
+    const BvhLaneTest lanes(w.ray);
+    const double t_e = w.rw.walk.t_e;
+    const float *dir = w.rw.dir, *org = w.rw.walk.org;
+    const float s_lo = w.rw.s_lo, s_hi = w.rw.s_hi, pad = w.pad;
+    const ShearedRay& sray = w.sray;
+    float t0 = w.t0, t1 = w.t1;
     const BvhLeafTriangle* leaf_tris = tree.bvh_leaf_tris;
     const BvhWideNode* nodes = tree.bvh_wide;
     const uint32_t* binary_of = tree.bvh_wide_binary;
