@@ -219,13 +219,19 @@ def along_edges(tris, n, rng):
     return _aim(a - back * (b - a), b)
 
 
+def from_distance(tris, n, rng, sizes: float):
+    """From `sizes` scene sizes away (the box's diagonal) towards points of
+    the scene."""
+    lo, hi, ext = _box(tris)
+    centre, size = (lo + hi) / 2, float(np.linalg.norm(ext))
+    origins = centre + _sphere(rng, n) * size * sizes
+    return _aim(origins, _surface_points(tris, n, rng))
+
+
 def far_away(tris, n, rng):
     """From a million scene sizes away towards points of the scene: the
     traversal's tolerances must follow the segment inside the box, not |o|."""
-    lo, hi, ext = _box(tris)
-    centre, size = (lo + hi) / 2, float(np.linalg.norm(ext))
-    origins = centre + _sphere(rng, n) * size * 1e6
-    return _aim(origins, _surface_points(tris, n, rng))
+    return from_distance(tris, n, rng, 1e6)
 
 
 def _camera_rays(cam: Camera, n: int) -> tuple:
@@ -283,3 +289,38 @@ def family(name: str, triangles: np.ndarray, count: int, seed: int = 0) -> tuple
     tmax = out[2] if len(out) > 2 else np.full(len(o), np.inf, np.float32)
     return (np.ascontiguousarray(o, np.float32), np.ascontiguousarray(d, np.float32),
             np.ascontiguousarray(tmax, np.float32))
+
+
+# The distances from the origin, in the scene's units, of the `shifted`
+# scenes: a tree's bounds must follow the scene's size, not its distance
+# from the origin (the trees' local frame, docs/algorithms.md#far-scenes).
+SHIFTS = (1e3, 1e4, 1e5, 1e6, 1e7)
+# The families traced on them: rays from outside, from inside, and grazing.
+SHIFTED_FAMILIES = ("outside_camera", "inside_camera", "outside_in", "through_edges")
+
+
+def representable_at(x, shift: float) -> np.ndarray:
+    """float32 copies of `x` (rounded to float32 at x + shift and moved back):
+    values whose sum with `shift` is exact in float32, so that the copy at
+    the origin and the one at `shift` are the same points."""
+    at = (np.asarray(x, np.float64) + shift).astype(np.float32)
+    back = (at.astype(np.float64) - shift).astype(np.float32)
+    if not np.array_equal((back.astype(np.float64) + shift).astype(np.float32), at):
+        raise ValueError(f"the points do not round-trip at {shift:g}: |x| reaches "
+                         f"{float(np.abs(np.asarray(x, np.float64)).max()):g}, too near the "
+                         "shift for exact moves")
+    return back
+
+
+def shifted(name: str, triangles: np.ndarray, count: int, shift: float, seed: int = 0):
+    """The `shifted` family: one scene and one set of rays (family `name`),
+    at the origin and moved by `shift` along every axis, identical geometry
+    (every coordinate representable_at the shift). Returns ((triangles,
+    origins) at the origin, (triangles, origins) at the shift, directions,
+    tmax)."""
+    base = representable_at(triangles, shift)
+    o, d, tmax = family(name, base, count, seed)
+    o0 = representable_at(o, shift)
+    moved = (base.astype(np.float64) + shift).astype(np.float32)
+    o_moved = (o0.astype(np.float64) + shift).astype(np.float32)
+    return (base, o0), (moved, o_moved), d, tmax

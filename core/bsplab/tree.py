@@ -43,22 +43,26 @@ class Tree:
     @property
     def triangles(self) -> np.ndarray:
         """The (N, 3, 3) float32 triangles, in input order: a read-only view,
-        or, when the tree scaled its coordinates (see `stats["scale"]`), an
-        exact copy in the input's units."""
-        tris, scale = self._tree.triangles, self._tree.scale
-        return tris if scale == 1.0 else (tris.astype(np.float64) / scale).astype(np.float32)
+        or, when the tree moved its coordinates into its local frame or
+        scaled them (see `stats["offset"]`, `stats["scale"]`), an exact copy
+        in the input's units."""
+        tris, scale, offset = self._tree.triangles, self._tree.scale, self._tree.offset
+        if scale == 1.0 and not any(offset):
+            return tris
+        return (tris.astype(np.float64) / scale + np.asarray(offset)).astype(np.float32)
 
     @property
     def bounds(self) -> tuple:
         """((x, y, z) lowest, (x, y, z) highest) corner of the live triangles."""
-        scale = self._tree.scale
-        return tuple(tuple(float(np.float32(c / scale)) for c in corner)
+        scale, offset = self._tree.scale, self._tree.offset
+        return tuple(tuple(float(np.float32(c / scale + o)) for c, o in zip(corner, offset))
                      for corner in self._tree.bounds)
 
     @property
     def stats(self) -> dict:
         s = self._tree.stats()
         s["scale"] = self._tree.scale
+        s["offset"] = tuple(self._tree.offset)
         s["method"] = self.method
         s.update({f"option_{k}": v for k, v in self.options.items()})
         return s

@@ -235,10 +235,14 @@ struct BuildStats {
 
 struct Tree {
     Structure structure = Structure::Bsp;
-    // Input numbering, degenerate ones included, multiplied by `scale`: a
-    // power of two that brings the largest coordinate into [1, 2) (exact).
-    // Rays are scaled the same way on the way in, distances on the way out.
+    // Input numbering, degenerate ones included, moved by -offset into the
+    // tree's local frame (frame.hpp: 0 on every axis but those where the
+    // scene lies far from the origin) and multiplied by `scale`: a power of
+    // two that brings the largest coordinate into [1, 2). Both exact. Rays
+    // go the same way on the way in (to_frame), distances are scaled back
+    // on the way out (the offset does not change them).
     std::vector<Triangle> triangles;
+    double offset[3] = {0.0, 0.0, 0.0};
     double scale = 1.0;
     std::vector<Node> nodes;
     std::vector<uint32_t> refs;

@@ -13,7 +13,13 @@ compared with those of the same rays moved off by MOVE (of the scene's
 size) across their direction ("x moved"): what lying exactly in a plane,
 on an edge or on a vertex costs over passing next to it, which is the
 cliff; a family aimed into the densest part of a scene costs more than
-camera rays whether or not it lies in a plane."""
+camera rays whether or not it lies in a plane.
+
+Beside the families of ray_families.FAMILIES: rays from FAR_SIZES scene
+sizes away ("far 1e+07": ray_families.from_distance), and the scene itself
+moved far from the origin ("shifted 1e+06": ray_families.shifted, the
+camera rays from outside on the moved copy, its tree built there), whose
+steps should be the origin copy's (the trees' local frame)."""
 
 from __future__ import annotations
 
@@ -62,6 +68,34 @@ def path_differences(tree, o, d, tmax, reference: dict) -> dict[str, int]:
     return out
 
 
+# The extra far families' distances, in scene sizes (far_away is 1e6), and
+# the shifts of the shifted rows, in the scene's units.
+FAR_SIZES = (1e3, 1e7)
+SHIFTS = (1e3, 1e6, 1e7)
+SHIFTED_FAMILY = "outside_camera"
+
+
+def far_families(tris, count: int, seed: int) -> dict:
+    """The rays from FAR_SIZES scene sizes away, as family name -> rays."""
+    out = {}
+    for sizes in FAR_SIZES:
+        rng = np.random.default_rng([seed, int(np.log10(sizes))])
+        o, d = ray_families.from_distance(tris, count, rng, sizes)
+        out[f"far {sizes:.0e}"] = (o, d, np.full(len(o), np.inf, np.float32))
+    return out
+
+
+def shifted_rows(build, tris, count: int, rounds: int, seed: int) -> list[dict]:
+    """family_rows of SHIFTED_FAMILY on the scene moved by each of SHIFTS,
+    with a tree `build(triangles)` of the moved scene."""
+    rows = []
+    for shift in SHIFTS:
+        _, (moved, o), d, tmax = ray_families.shifted(SHIFTED_FAMILY, tris, count, shift, seed)
+        rows += family_rows(build(moved), oracle.EmbreeTracer(moved), moved,
+                            {f"shifted {shift:.0e}": (o, d, tmax)}, rounds)
+    return rows
+
+
 def family_rows(tree, embree, tris, families: dict, rounds: int) -> list[dict]:
     """One row per family: counts per ray, Embree's answers checked, the
     paths compared, the hits-only time over Embree's."""
@@ -102,6 +136,7 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
         tris = load(scene)
         embree = oracle.EmbreeTracer(tris)
         families = {n: ray_families.family(n, tris, count, seed) for n in ray_families.FAMILIES}
+        families.update(far_families(tris, count, seed))
         out(f"\n{scene}: {len(tris):,} triangles, {count:,} rays per family")
         out(f"{'method':<14}{'family':<24}{'steps':>9}{'x moved':>9}{'tests':>9}{'leaks':>7}"
             f"{'unexpl':>8}{'paths!=':>8}{'x Embree':>10}")
@@ -110,7 +145,8 @@ def run(scenes: list[str], methods: list[str], count: int, k: int | None = None,
             if k is not None and "k" in table[method]["params"]:
                 opts["k"] = max(k, table[method]["min_k"])
             tree = bsplab.build(tris, method=method, **opts)
-            for r in family_rows(tree, embree, tris, families, rounds):
+            for r in family_rows(tree, embree, tris, families, rounds) + shifted_rows(
+                    lambda t: bsplab.build(t, method=method, **opts), tris, count, rounds, seed):
                 r.update(scene=scene, method=method)
                 rows.append(r)
                 out(f"{method:<14}{r['family']:<24}{r['steps']:>9.1f}{r['x_moved']:>9.2f}"

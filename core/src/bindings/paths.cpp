@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "bindings/arrays.hpp"
+#include "frame.hpp"
 #include "inspect/tree_geometry.hpp"  // world_plane
 
 namespace bsp::bindings {
@@ -33,8 +34,8 @@ nb::dict path_dict(const Tree& tree, const TracePath& p) {
         }
         const BvhNode& b = tree.bvh_nodes[node[i]];
         for (int k = 0; k < 3; ++k) {
-            box_lo[3 * i + k] = double(b.lo[k]) / tree.scale;
-            box_hi[3 * i + k] = double(b.hi[k]) / tree.scale;
+            box_lo[3 * i + k] = to_world(b.lo[k], k, tree.offset, tree.scale);
+            box_hi[3 * i + k] = to_world(b.hi[k], k, tree.offset, tree.scale);
         }
     }
     for (size_t i = 0; i < m; ++i) {

@@ -131,6 +131,10 @@ void bind_tree(nb::module_& m) {
                      "\"bvh\" for a bounding-volume hierarchy, \"bsp\" for kd and BSP trees.")
         .def_ro("scale", &Tree::scale,
                 "The power of two the triangles (and bounds) were multiplied by inside the tree.")
+        .def_prop_ro("offset", [](const Tree& t) {
+            return nb::make_tuple(t.offset[0], t.offset[1], t.offset[2]);
+        }, "The point the triangles (and bounds) were moved by -offset from, before scaling: "
+           "the tree's local frame, (0, 0, 0) unless the scene lies far from the origin.")
         .def_prop_ro("bounds", [](const Tree& t) {
             return nb::make_tuple(nb::make_tuple(t.bounds.lo.x, t.bounds.lo.y, t.bounds.lo.z),
                                   nb::make_tuple(t.bounds.hi.x, t.bounds.hi.y, t.bounds.hi.z));

@@ -1,6 +1,7 @@
 #include "builders/build_tree.hpp"
 
 #include "builders/cost_model.hpp"
+#include "frame.hpp"
 #include "parallel.hpp"
 
 #include <algorithm>
@@ -255,6 +256,11 @@ float robust_epsilon(const std::vector<Triangle>& triangles) {
 Prepared prepare(Tree& tree, const BuildOptions& options) {
     Prepared p;
     tree.options = options;
+    // The frame first: the scale then brings the scene's own size, not its
+    // distance from the origin, into [1, 2).
+    const Frame frame = choose_frame(tree.triangles);
+    move_into(frame, tree.triangles);
+    std::copy(frame.offset, frame.offset + 3, tree.offset);
     tree.scale = normalise_scale(tree.triangles);
     const uint32_t n = uint32_t(tree.triangles.size());
     for (uint32_t i = 0; i < n; ++i) {

@@ -11,6 +11,7 @@
 
 #include "builders/bvh_build.hpp"
 #include "builders/memory.hpp"
+#include "frame.hpp"
 #include "instanced.hpp"
 
 namespace bsp {
@@ -66,12 +67,15 @@ void invert(const double* m, double* inv, size_t i) {
 }
 
 // The world box of an object-space box under x = A x' + b, padded outwards.
-Box world_box(const Box& object, double scale, const double* m) {
+// (The mesh tree's box, in its frame and scaled space, back in object space first.)
+Box world_box(const Tree& tree, const double* m) {
+    const Box& object = tree.bounds;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int corner = 0; corner < 8; ++corner) {
-        const double p[3] = {double(corner & 1 ? object.hi.x : object.lo.x) / scale,
-                             double(corner & 2 ? object.hi.y : object.lo.y) / scale,
-                             double(corner & 4 ? object.hi.z : object.lo.z) / scale};
+        const double p[3] = {
+            to_world(corner & 1 ? object.hi.x : object.lo.x, 0, tree.offset, tree.scale),
+            to_world(corner & 2 ? object.hi.y : object.lo.y, 1, tree.offset, tree.scale),
+            to_world(corner & 4 ? object.hi.z : object.lo.z, 2, tree.offset, tree.scale)};
         for (int r = 0; r < 3; ++r) {
             const double x = m[4 * r] * p[0] + m[4 * r + 1] * p[1] + m[4 * r + 2] * p[2] + m[4 * r + 3];
             lo[r] = std::min(lo[r], x);
@@ -173,7 +177,7 @@ InstancedScene build_instanced(std::vector<const Tree*> meshes,
         flat += tree.triangles.size();
         if (tree.bounds.empty()) continue;  // no live triangle: nothing to hit
         try {
-            boxes.push_back(world_box(tree.bounds, tree.scale, world_from_object));
+            boxes.push_back(world_box(tree, world_from_object));
         } catch (const std::range_error& e) {
             throw std::invalid_argument(instance_name(i) + ": " + e.what());
         }

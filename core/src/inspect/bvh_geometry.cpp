@@ -4,6 +4,8 @@
 #include <string>
 #include <utility>
 
+#include "frame.hpp"
+
 namespace bsp {
 
 NodeBoxes node_boxes(const Tree& tree, int max_depth, uint32_t root, size_t max_boxes) {
@@ -17,7 +19,6 @@ NodeBoxes node_boxes(const Tree& tree, int max_depth, uint32_t root, size_t max_
         throw std::invalid_argument("root must be < " + std::to_string(tree.bvh_nodes.size()) +
                                     ", got " + std::to_string(root));
     NodeBoxes out;
-    const double inv_scale = 1.0 / tree.scale;
     std::vector<uint32_t> level{root}, next;
     for (int depth = 0; depth <= max_depth && !level.empty(); ++depth) {
         next.clear();
@@ -28,8 +29,8 @@ NodeBoxes node_boxes(const Tree& tree, int max_depth, uint32_t root, size_t max_
             }
             const BvhNode& n = tree.bvh_nodes[i];
             for (int k = 0; k < 3; ++k) {
-                out.lo.push_back(float(double(n.lo[k]) * inv_scale));
-                out.hi.push_back(float(double(n.hi[k]) * inv_scale));
+                out.lo.push_back(float(to_world(n.lo[k], k, tree.offset, tree.scale)));
+                out.hi.push_back(float(to_world(n.hi[k], k, tree.offset, tree.scale)));
             }
             out.node.push_back(i);
             out.depth.push_back(depth);
@@ -46,7 +47,8 @@ NodeBoxes node_boxes(const Tree& tree, int max_depth, uint32_t root, size_t max_
 
 NodeAt bvh_node_at(const Tree& tree, const double p[3], int max_depth) {
     const double s = tree.scale;
-    const float q[3] = {float(p[0] * s), float(p[1] * s), float(p[2] * s)};
+    const float q[3] = {float((p[0] - tree.offset[0]) * s), float((p[1] - tree.offset[1]) * s),
+                        float((p[2] - tree.offset[2]) * s)};
     auto holds = [&](const BvhNode& n) {
         for (int k = 0; k < 3; ++k)
             if (!(n.lo[k] <= q[k] && q[k] <= n.hi[k])) return false;

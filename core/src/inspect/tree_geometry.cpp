@@ -124,11 +124,11 @@ private:
 
 }  // namespace
 
-void PolygonSoup::add(const Vec3d* p, size_t n, double inv_scale) {
+void PolygonSoup::add(const Vec3d* p, size_t n, const Tree& tree) {
     for (size_t i = 0; i < n; ++i) {
-        vertices.push_back(float(p[i].x * inv_scale));
-        vertices.push_back(float(p[i].y * inv_scale));
-        vertices.push_back(float(p[i].z * inv_scale));
+        vertices.push_back(float(to_world(p[i].x, 0, tree.offset, tree.scale)));
+        vertices.push_back(float(to_world(p[i].y, 1, tree.offset, tree.scale)));
+        vertices.push_back(float(to_world(p[i].z, 2, tree.offset, tree.scale)));
     }
     offsets.push_back(uint32_t(vertices.size() / 3));
 }
@@ -140,14 +140,16 @@ bool world_plane(const Tree& tree, uint32_t index, double plane[4]) {
     if (n.is_kd()) {
         plane[0] = plane[1] = plane[2] = 0.0;
         plane[n.axis()] = 1.0;
-        plane[3] = double(n.split) / tree.scale;
+        plane[3] = to_world(n.split, n.axis(), tree.offset, tree.scale);
         return true;
     }
     const Plane& p = tree.planes[n.first];
     plane[0] = p.nx;
     plane[1] = p.ny;
     plane[2] = p.nz;
-    plane[3] = double(p.d) / tree.scale;
+    // n.(x - offset) s = d in the tree's space.
+    plane[3] = double(p.d) / tree.scale + p.nx * tree.offset[0] + p.ny * tree.offset[1] +
+               p.nz * tree.offset[2];
     return true;
 }
 
@@ -165,7 +167,6 @@ SplitPolygons split_polygons(const Tree& tree, int max_depth, uint32_t root, siz
     if (max_depth < 0)
         throw std::invalid_argument("max_depth must be >= 0, got " + std::to_string(max_depth));
     SplitPolygons out;
-    const double inv_scale = 1.0 / tree.scale;
     LevelWalk walk(tree, root);
     Pending p;
     while (walk.next(p)) {
@@ -187,7 +188,7 @@ SplitPolygons split_polygons(const Tree& tree, int max_depth, uint32_t root, siz
         const Cell& owner = f ? below : above;
         if (!f) f = face_in_plane(above, normal * -1.0, -d);
         if (f) {
-            out.polygons.add(&owner.points()[f->first], f->count, inv_scale);
+            out.polygons.add(&owner.points()[f->first], f->count, tree);
             out.node.push_back(p.index);
             out.depth.push_back(p.depth);
             out.kind.push_back(uint8_t(n.kind()));
@@ -203,7 +204,6 @@ SplitPolygons split_polygons(const Tree& tree, int max_depth, uint32_t root, siz
 NodeCells node_cells(const Tree& tree, int max_depth, uint32_t root, size_t max_cells) {
     refuse_bvh(tree);
     NodeCells out;
-    const double inv_scale = 1.0 / tree.scale;
     LevelWalk walk(tree, root);
     Pending p;
     while (walk.next(p)) {
@@ -217,7 +217,7 @@ NodeCells node_cells(const Tree& tree, int max_depth, uint32_t root, size_t max_
             break;
         }
         for (const Cell::Face& f : p.cell.faces())
-            out.faces.add(&p.cell.points()[f.first], f.count, inv_scale);
+            out.faces.add(&p.cell.points()[f.first], f.count, tree);
         out.cell_offsets.push_back(uint32_t(out.faces.size()));
         out.node.push_back(p.index);
         out.depth.push_back(p.depth);
@@ -228,7 +228,8 @@ NodeCells node_cells(const Tree& tree, int max_depth, uint32_t root, size_t max_
 
 NodeAt node_at(const Tree& tree, const double p[3], int max_depth) {
     if (tree.structure == Structure::Bvh) return bvh_node_at(tree, p, max_depth);
-    const double s[3] = {p[0] * tree.scale, p[1] * tree.scale, p[2] * tree.scale};
+    const double s[3] = {(p[0] - tree.offset[0]) * tree.scale, (p[1] - tree.offset[1]) * tree.scale,
+                         (p[2] - tree.offset[2]) * tree.scale};
     const Box& b = tree.bounds;
     for (int k = 0; k < 3; ++k)
         if (!(s[k] >= b.lo[k] && s[k] <= b.hi[k])) return {-1, -1};

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "builders/cell.hpp"
+#include "frame.hpp"
 #include "tree.hpp"
 
 namespace bsp {
@@ -19,7 +20,7 @@ struct PolygonSoup {
     std::vector<float> vertices;
     std::vector<uint32_t> offsets{0};
     size_t size() const { return offsets.size() - 1; }
-    void add(const Vec3d* p, size_t n, double inv_scale);
+    void add(const Vec3d* p, size_t n, const Tree& tree);  // in world units
 };
 
 // One polygon per interior node: its split plane inside its cell.

@@ -184,8 +184,8 @@ TracePath trace_path(const Tree& tree, const float o[3], const float d[3], float
                      bool cull) {
     const double s = tree.scale;
     const Vec3 dir(d[0], d[1], d[2]);
-    const Vec3 org = s == 1.0 ? Vec3(o[0], o[1], o[2])
-                              : Vec3(float(o[0] * s), float(o[1] * s), float(o[2] * s));
+    // Into the tree's frame and scaled space, as the kernels' ray loops.
+    const Vec3 org = to_frame(tree.offset, s, o);
     const float lo = s == 1.0 ? tmin : float(tmin * s), hi = s == 1.0 ? tmax : float(tmax * s);
     TracePath path = record_path(tree, org, dir, lo, hi, cull);
     unscale(path, s, tmax);

@@ -53,6 +53,7 @@ inline double ray_distance(const Triangle& tri, const ShearedRay& r) {
 
 struct TriangleHit {
     float t, u, v;
+    double td;  // t before its rounding to float (ray_distance)
 };
 
 // The component k of v, read from memory rather than chosen by
@@ -84,11 +85,14 @@ BSPLAB_KERNEL_SHARED_INLINE void barycentrics(float U, float V, float W, float& 
 }
 
 // Returns true and fills `hit` when the ray hits the triangle with
-// tmin < t < tmax, or t == tmax when `tie_wins` (the traversal's tie rule:
-// of equally close hits the smallest triangle index wins, single_ray.hpp).
+// tmin < t < tmax, or t == tmax with a double distance below `tie_td`, or
+// equal to it when `tie_wins` (the traversal's tie rule, single_ray.hpp's
+// Closest: of equally close float hits the nearer in double wins, then the
+// smallest triangle index).
 // u, v follow Embree: p = (1-u-v) v0 + u v1 + v v2.
 BSPLAB_KERNEL_SHARED_INLINE bool intersect_triangle(const ShearedRay& r, const Triangle& tri,
                                                     float tmin, float tmax, TriangleHit& hit,
+                                                    double tie_td = -INFINITY,
                                                     bool tie_wins = false) {
     const Vec3 A = tri.v[0] - r.org, B = tri.v[1] - r.org, C = tri.v[2] - r.org;
     const float Az = component(A, r.kz), Bz = component(B, r.kz), Cz = component(C, r.kz);
@@ -123,8 +127,10 @@ BSPLAB_KERNEL_SHARED_INLINE bool intersect_triangle(const ShearedRay& r, const T
     // multiplications per hit, not per test.
     const double t = ray_distance(tri, r);
     const float tf = float(t);
-    if (!(tf > tmin && (tf < tmax || (tie_wins && tf == tmax)))) return false;
+    if (!(tf > tmin && (tf < tmax || (tf == tmax && (t < tie_td || (tie_wins && t == tie_td))))))
+        return false;
     hit.t = tf;
+    hit.td = t;
     barycentrics(U, V, W, hit.u, hit.v);
     return true;
 }

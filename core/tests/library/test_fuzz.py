@@ -63,13 +63,32 @@ def part(draw, kinds=fuzz.KINDS) -> dict:
     return p
 
 
-scene_specs = st.fixed_dictionaries({
-    "parts": st.lists(part(), min_size=1, max_size=5),
-    "scale_exp": st.integers(-3, 3),
-    "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
-    "method": st.sampled_from(list(METHODS)),
-    "k": st.integers(1, 9),
-})
+def fuzz_settings(n: int):
+    """The fuzz tests' hypothesis settings, `n` examples in the default profile."""
+    return settings(max_examples=examples(n), deadline=None, derandomize=not LONG,
+                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+
+# Where the scenes lie: at the origin, off it, and far from it in scene
+# sizes, where the trees build and walk in a local frame (core/src/frame.hpp).
+OFFSETS = [(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0), (1e6, -3e6, 2e5), (-1e7, 0, 5e6)]
+
+
+def scene_specs_of(parts=None, **fields) -> st.SearchStrategy:
+    """Scene specs: up to five parts (of fuzz.KINDS unless `parts`), at every
+    scale and offset, with the method's `fields`."""
+    return st.fixed_dictionaries({
+        "parts": parts if parts is not None else st.lists(part(), min_size=1, max_size=5),
+        "scale_exp": st.integers(-3, 3),
+        "offset": st.sampled_from(OFFSETS),
+        **fields,
+    })
+
+
+scene_specs = scene_specs_of(
+    method=st.sampled_from(list(METHODS)),
+    k=st.integers(1, 9),
+)
 
 
 def method_options(case: dict) -> dict:
@@ -135,8 +154,7 @@ def check_sorted_batch(tracer, rays, hits: dict, label: str, case: dict,
                 {k: v[perm] for k, v in want.items()})
 
 
-@settings(max_examples=examples(150), deadline=None, derandomize=not LONG,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@fuzz_settings(150)
 @given(scene_specs)
 def test_every_method_agrees_with_embree_on_random_scenes(case):
     check_spec(case)
@@ -144,17 +162,12 @@ def test_every_method_agrees_with_embree_on_random_scenes(case):
 
 # The BVH on scenes with its own parts too (fuzz.BOX_KINDS: overlapping and
 # flat boxes, axis-aligned quads), at every scale and offset.
-box_scene_specs = st.fixed_dictionaries({
-    "parts": st.lists(part(fuzz.KINDS + fuzz.BOX_KINDS), min_size=1, max_size=5),
-    "scale_exp": st.integers(-3, 3),
-    "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
-    "method": st.just("bvh"),
-    "k": st.just(1),
-})
+box_scene_specs = scene_specs_of(
+    st.lists(part(fuzz.KINDS + fuzz.BOX_KINDS), min_size=1, max_size=5),
+    method=st.just("bvh"), k=st.just(1))
 
 
-@settings(max_examples=examples(60), deadline=None, derandomize=not LONG,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@fuzz_settings(60)
 @given(box_scene_specs)
 def test_the_bvh_agrees_with_embree_on_random_box_scenes(case):
     check_spec(case)
@@ -163,20 +176,15 @@ def test_the_bvh_agrees_with_embree_on_random_box_scenes(case):
 # Fast builds (build_quality="fast") of kd and the sweep builder, binned down
 # to nodes of a few references so that the fuzzer's small scenes bin most of
 # their levels.
-fast_specs = st.fixed_dictionaries({
-    "parts": st.lists(part(), min_size=1, max_size=5),
-    "scale_exp": st.integers(-3, 3),
-    "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
-    "method": st.sampled_from(["kd", "bsp_wn+kd", "bsp_ize+kd", "bsp_random"]),
-    "k": st.integers(3, 6),
-    "options": st.fixed_dictionaries({"build_quality": st.just("fast"),
-                                      "fast_min_refs": st.sampled_from([2, 8, 64]),
-                                      "fast_bins": st.sampled_from([2, 5, 32])}),
-})
+fast_specs = scene_specs_of(
+    method=st.sampled_from(["kd", "bsp_wn+kd", "bsp_ize+kd", "bsp_random"]),
+    k=st.integers(3, 6),
+    options=st.fixed_dictionaries({"build_quality": st.just("fast"),
+                                   "fast_min_refs": st.sampled_from([2, 8, 64]),
+                                   "fast_bins": st.sampled_from([2, 5, 32])}))
 
 
-@settings(max_examples=examples(60), deadline=None, derandomize=not LONG,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@fuzz_settings(60)
 @given(fast_specs)
 def test_fast_trees_agree_with_embree_on_random_scenes(case):
     check_spec(case)
@@ -185,21 +193,16 @@ def test_fast_trees_agree_with_embree_on_random_scenes(case):
 # Fast kd builds that cut straddling triangles' boxes at the plane instead
 # of clipping the triangles (fast_clip_min_refs), from a few nodes at the
 # bottom to every split, with and without binned nodes above.
-cut_specs = st.fixed_dictionaries({
-    "parts": st.lists(part(), min_size=1, max_size=5),
-    "scale_exp": st.integers(-3, 3),
-    "offset": st.sampled_from([(0, 0, 0), (1000, -2000, 500), (1e5, 0, 0)]),
-    "method": st.just("kd"),
-    "k": st.just(3),
-    "options": st.fixed_dictionaries({"build_quality": st.just("fast"),
-                                      "fast_min_refs": st.sampled_from([8, 64, 1 << 20]),
-                                      "fast_clip_min_refs": st.sampled_from([4, 12, 1 << 20]),
-                                      "leaf_boxes": st.sampled_from(["triangle", "clipped"])}),
-})
+cut_specs = scene_specs_of(
+    method=st.just("kd"),
+    k=st.just(3),
+    options=st.fixed_dictionaries({"build_quality": st.just("fast"),
+                                   "fast_min_refs": st.sampled_from([8, 64, 1 << 20]),
+                                   "fast_clip_min_refs": st.sampled_from([4, 12, 1 << 20]),
+                                   "leaf_boxes": st.sampled_from(["triangle", "clipped"])}))
 
 
-@settings(max_examples=examples(40), deadline=None, derandomize=not LONG,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@fuzz_settings(40)
 @given(cut_specs)
 def test_fast_kd_trees_that_cut_boxes_agree_with_embree_on_random_scenes(case):
     check_spec(case)
@@ -271,8 +274,7 @@ def check_instanced_spec(case: dict) -> None:
                        keys=("t", "prim", "u", "v", "instance"))
 
 
-@settings(max_examples=examples(40), deadline=None, derandomize=not LONG,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@fuzz_settings(40)
 @given(instanced_specs)
 def test_instanced_scenes_agree_with_embree_on_the_flattened_scene(case):
     check_instanced_spec(case)

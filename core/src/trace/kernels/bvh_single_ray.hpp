@@ -88,6 +88,44 @@ struct BvhRay {
         exit = std::min(std::min(std::min(s1, tfx), tfy), tfz);
         return enter <= exit;
     }
+
+    // The ray of walk `w` (single_ray.hpp's RayWalk), clipped to the root's
+    // box: its range there [t0, t1], and the crossing errors of that range.
+    // False when it misses the box.
+    bool start(const TreeView& tree, const RayWalk& w, float& t0, float& t1) {
+        t0 = w.s_lo;
+        t1 = w.s_hi;
+        if (!clip_to_box(tree.bvh_nodes[0].box(), w.walk.org, w.idir, w.dir, w.walk.org_err, t0,
+                         t1))
+            return false;
+        axis_crossing_errors(w.walk, t0, t1, err);
+        for (int k = 0; k < 3; ++k) {
+            org[k] = w.walk.org[k];
+            idir[k] = w.idir[k];
+            neg[k] = std::signbit(w.dir[k]);
+        }
+        return true;
+    }
+};
+
+// What both BVH walks (this file's, bvh_wide_single_ray.hpp's) start from:
+// the ray's walk (RayWalk), its box test's ray clipped to the root's box
+// over [t0, t1] (in_box false when it misses), the triangle test's ray and
+// the leaves' box padding (the builders' and the test's displacement).
+struct BvhWalkStart {
+    RayWalk rw;
+    BvhRay ray;
+    float t0 = 0, t1 = 0;
+    bool in_box;
+    ShearedRay sray;
+    float pad;
+
+    BvhWalkStart(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+                 Closest& hit)
+        : rw(tree, o, d, tmin, tmax, hit),
+          in_box(ray.start(tree, rw, t0, t1)),
+          sray(rw.test_ray()),
+          pad(tree.cull_pad + rw.walk.slack) {}
 };
 
 // Entries of the traversal stack: one per level of the tree at most
@@ -138,29 +176,16 @@ struct BvhPairTest {
 template <class Counters>
 void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                    Closest& hit, Counters& count) {
-    hit.t = tmax;
-    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
-    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
-    const WalkStart walk(tree, ray_org, dir, idir);
-    const double t_e = walk.t_e;
-    const float* org = walk.org;
-    hit.reach = walk_reach(tmax, t_e);
-    const float s_lo = walk_lower(tmin, t_e), s_hi = walk_upper(tmax, t_e);
-    const BvhNode* nodes = tree.bvh_nodes;
-    float t0 = s_lo, t1 = s_hi;
+    const BvhWalkStart w(tree, o, d, tmin, tmax, hit);
     count.box_test(1);
-    if (!clip_to_box(nodes[0].box(), org, idir, dir, walk.org_err, t0, t1)) return;
-    BvhRay ray;
-    axis_crossing_errors(walk, t0, t1, ray.err);
-    for (int k = 0; k < 3; ++k) {
-        ray.org[k] = org[k];
-        ray.idir[k] = idir[k];
-        ray.neg[k] = std::signbit(dir[k]);
-    }
-    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
-                          walk.test_t);
-    const BvhPairTest pair(ray);
-    const float pad = tree.cull_pad + walk.slack;
+    if (!w.in_box) return;
+    const double t_e = w.rw.walk.t_e;
+    const float *dir = w.rw.dir, *org = w.rw.walk.org;
+    const float s_lo = w.rw.s_lo, s_hi = w.rw.s_hi, pad = w.pad;
+    const ShearedRay& sray = w.sray;
+    float t0 = w.t0, t1 = w.t1;
+    const BvhNode* nodes = tree.bvh_nodes;
+    const BvhPairTest pair(w.ray);
     const uint32_t* refs = tree.refs;
     const Triangle* tris = tree.tris;
     StackEntry stack[kBvhStack];
@@ -205,11 +230,11 @@ void bvh_trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmi
                 count.test(p);
                 TriangleHit th;
                 const Triangle& tri = tris[p];
-                if (intersect_triangle(sray, tri, tmin, hit.t, th, int32_t(p) < hit.prim) &&
+                if (intersect_triangle(sray, tri, tmin, hit.t, th, hit.td, int32_t(p) < hit.prim) &&
                     leaf_accepts(tri.bounds(), org, dir, t0, std::min(t1, hit.reach), th.t, t_e,
                                  pad)) {
                     count.hit(th.t);
-                    hit.take(th.t, p, th.u, th.v, t_e);
+                    hit.take(th.t, th.td, p, th.u, th.v, t_e);
                 } else {
                     count.miss();
                 }
@@ -233,10 +258,10 @@ void trace_bvh_rays(const TreeView& view, const RayBatch& rays, const HitBatch& 
         Counters count;
         const float tmin = rays.tmin[i * rays.tmin_stride];
         const float tmax = rays.tmax[i * rays.tmax_stride];
-        if (scale == 1.0) {
+        if (scale == 1.0 && !view.moved) {
             trace_one(view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c, count);
         } else {
-            const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+            const Vec3 so = to_tree_space(view, o);
             trace_one(view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale), float(tmax * scale),
                       c, count);
             c.t = float(c.t * inv_scale);

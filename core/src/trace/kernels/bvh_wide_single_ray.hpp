@@ -13,7 +13,8 @@
 // face plane) and where both are zeros, as the pair test's accumulator does.
 // The leaves are the binary tree's, so a leaf is entered with the same range
 // and accepts the same hits; only the order of the visits differs, and the
-// closest hit with its tie rule (the smallest triangle index of equal t)
+// closest hit with its tie rule (of equal t the nearer in double, then the
+// smallest triangle index)
 // does not depend on the order.
 //
 // Every path walks it - hits only, packets, counting, trace_path - so that
@@ -170,28 +171,15 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                                                               const Vec3& d, float tmin,
                                                               float tmax, Closest& hit,
                                                               Counters& count_) {
-    hit.t = tmax;
-    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
-    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
-    const WalkStart walk(tree, ray_org, dir, idir);
-    const double t_e = walk.t_e;
-    const float* org = walk.org;
-    hit.reach = walk_reach(tmax, t_e);
-    const float s_lo = walk_lower(tmin, t_e), s_hi = walk_upper(tmax, t_e);
-    float t0 = s_lo, t1 = s_hi;
+    const BvhWalkStart w(tree, o, d, tmin, tmax, hit);
     count_.box_test(1);
-    if (!clip_to_box(tree.bvh_nodes[0].box(), org, idir, dir, walk.org_err, t0, t1)) return;
-    BvhRay ray;
-    axis_crossing_errors(walk, t0, t1, ray.err);
-    for (int k = 0; k < 3; ++k) {
-        ray.org[k] = org[k];
-        ray.idir[k] = idir[k];
-        ray.neg[k] = std::signbit(dir[k]);
-    }
-    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
-                          walk.test_t);
-    const BvhLaneTest lanes(ray);
-    const float pad = tree.cull_pad + walk.slack;
+    if (!w.in_box) return;
+    const BvhLaneTest lanes(w.ray);
+    const double t_e = w.rw.walk.t_e;
+    const float *dir = w.rw.dir, *org = w.rw.walk.org;
+    const float s_lo = w.rw.s_lo, s_hi = w.rw.s_hi, pad = w.pad;
+    const ShearedRay& sray = w.sray;
+    float t0 = w.t0, t1 = w.t1;
     const BvhLeafTriangle* leaf_tris = tree.bvh_leaf_tris;
     const BvhWideNode* nodes = tree.bvh_wide;
     const uint32_t* binary_of = tree.bvh_wide_binary;
@@ -280,11 +268,11 @@ __attribute__((always_inline)) inline void bvh_wide_trace_one(const TreeView& tr
                 count_.test(p);
                 TriangleHit th;
                 const Triangle& tri = leaf.tri;
-                if (intersect_triangle(sray, tri, tmin, hit.t, th, int32_t(p) < hit.prim) &&
+                if (intersect_triangle(sray, tri, tmin, hit.t, th, hit.td, int32_t(p) < hit.prim) &&
                     leaf_accepts(tri.bounds(), org, dir, t0, std::min(t1, hit.reach), th.t, t_e,
                                  pad)) {
                     count_.hit(th.t);
-                    hit.take(th.t, p, th.u, th.v, t_e);
+                    hit.take(th.t, th.td, p, th.u, th.v, t_e);
                 } else {
                     count_.miss();
                 }

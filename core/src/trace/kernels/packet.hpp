@@ -127,40 +127,49 @@ inline ShearedVertex shear_vertex(const PacketRays& r, const Vec3& v) {
 }
 
 // The closest hits of a packet; prim -1 where none yet. Ties as in
-// single_ray.hpp's Closest: the smallest triangle index wins.
+// single_ray.hpp's Closest: of equal float t the nearer in double (td), then
+// the smallest triangle index wins.
 struct PacketHits {
     vfloat t, u, v;
     vint prim;
+    vdouble td;  // the hits' double distances (Closest::td)
 };
 
-// walk_reach for every lane: the walk parameter beyond which a lane's cell
-// cannot hold a hit as close as its closest one.
-inline vfloat lane_reach(const PacketRays& r, vfloat hit_t) {
+// Closest::reach for lane i: the walk parameter beyond which its cell cannot
+// hold a hit as close as its closest one (walk_reach_exact; before the
+// first hit walk_reach of tmax).
+inline float lane_reach_of(const PacketRays& r, const PacketHits& hits, int i) {
+    return hits.prim[i] >= 0 ? walk_reach_exact(hits.td[i], r.t_e[i])
+                             : walk_reach(hits.t[i], r.t_e[i]);
+}
+
+// lane_reach_of for every lane.
+inline vfloat lane_reach(const PacketRays& r, const PacketHits& hits) {
     vfloat reach;
-    for (int i = 0; i < kLanes; ++i) reach[i] = walk_reach(hit_t[i], r.t_e[i]);
+    for (int i = 0; i < kLanes; ++i) reach[i] = lane_reach_of(r, hits, i);
     return reach;
 }
 
 // ray_distance (triangle.hpp) for every lane: the same double operations
 // in the same order, the triangle's normal computed once.
-inline vfloat plane_distances(const PacketRays& r, const Triangle& tri) {
+inline vdouble plane_distances(const PacketRays& r, const Triangle& tri) {
     double n[3];
     tri.normal_double(n);
     const vdouble num = n[0] * (double(tri.v[0].x) - r.org_d[0]) +
                         n[1] * (double(tri.v[0].y) - r.org_d[1]) +
                         n[2] * (double(tri.v[0].z) - r.org_d[2]);
     const vdouble den = n[0] * r.dir_d[0] + n[1] * r.dir_d[1] + n[2] * r.dir_d[2];
-    return __builtin_convertvector(r.test_t + num / den, vfloat);
+    return r.test_t + num / den;
 }
 
 // ray_distance for the lanes in `lanes` one by one (the other lanes: 0).
-inline vfloat plane_distances_of(const PacketRays& r, const Triangle& tri, LaneMask lanes) {
-    vfloat t{};
+inline vdouble plane_distances_of(const PacketRays& r, const Triangle& tri, LaneMask lanes) {
+    vdouble t{};
     for (; lanes; lanes &= lanes - 1) {
         const int i = __builtin_ctz(lanes);
         const Vec3 o(r.org[0][i], r.org[1][i], r.org[2][i]);
         const Vec3 d(r.dir[0][i], r.dir[1][i], r.dir[2][i]);
-        t[i] = float(r.test_t[i] + plane_distance(tri, o, d));
+        t[i] = r.test_t[i] + plane_distance(tri, o, d);
     }
     return t;
 }
@@ -200,11 +209,15 @@ inline LaneMask intersect_packet_triangle(const TreeView& tree, const PacketRays
     // The distance of the lanes that pass the edge test (most of them hit:
     // this runs about once per hit, not per test). A lane or two, as in
     // packets that spread over small triangles, take the scalar division.
-    const vfloat t = __builtin_popcount(inside) <= 2 ? plane_distances_of(r, tri, inside)
-                                                     : plane_distances(r, tri);
+    const vdouble td = __builtin_popcount(inside) <= 2 ? plane_distances_of(r, tri, inside)
+                                                       : plane_distances(r, tri);
+    const vfloat t = __builtin_convertvector(td, vfloat);
     const vint prims = int32_t(prim) + vint{};
+    // Closest::beaten_by, lane by lane.
+    const vint nearer = __builtin_convertvector(td < hits.td, vint);
+    const vint as_near = __builtin_convertvector(td == hits.td, vint);
     vint closer = lane_vector(inside) & (t > r.tmin) &
-                  ((t < hits.t) | ((t == hits.t) & (prims < hits.prim)));
+                  ((t < hits.t) | ((t == hits.t) & (nearer | (as_near & (prims < hits.prim)))));
     LaneMask rejected = 0;
     if (tree.box_kind != LeafBoxes::None) {
         const Box& box = culling_box(tree, prim, slot);
@@ -212,7 +225,7 @@ inline LaneMask intersect_packet_triangle(const TreeView& tree, const PacketRays
             const int i = __builtin_ctz(m);
             const float org[3] = {r.walk[0][i], r.walk[1][i], r.walk[2][i]};
             const float dir[3] = {r.dir[0][i], r.dir[1][i], r.dir[2][i]};
-            const float s1 = std::min(t1[i], walk_reach(hits.t[i], r.t_e[i]));
+            const float s1 = std::min(t1[i], lane_reach_of(r, hits, i));
             if (!leaf_accepts(box, org, dir, t0[i], s1, t[i], r.t_e[i],
                               tree.cull_pad + r.slack[i])) {
                 closer[i] = 0;
@@ -222,6 +235,7 @@ inline LaneMask intersect_packet_triangle(const TreeView& tree, const PacketRays
     }
     const vfloat inv = 1.0f / det;
     hits.t = select(closer, t, hits.t);
+    for (LaneMask m = lane_bits(closer); m; m &= m - 1) hits.td[__builtin_ctz(m)] = td[__builtin_ctz(m)];
     hits.u = select(closer, V * inv, hits.u);
     hits.v = select(closer, W * inv, hits.v);
     hits.prim = closer ? prims : hits.prim;
@@ -388,13 +402,14 @@ inline LaneMask setup_packet(const TreeView& tree, const RayBatch& batch, size_t
         const float tmin = batch.tmin[k * batch.tmin_stride];
         const float tm = batch.tmax[k * batch.tmax_stride];
         for (int c = 0; c < 3; ++c) r.dir[c][i] = d[c];
-        if (scale == 1.0) {
+        if (scale == 1.0 && !tree.moved) {
             for (int c = 0; c < 3; ++c) r.org[c][i] = o[c];
             r.tmin[i] = tmin, tmax[i] = tm;
         } else {
-            // Into the tree's scaled space, as trace_single_rays: o and the
-            // range scale, d does not.
-            for (int c = 0; c < 3; ++c) r.org[c][i] = float(o[c] * scale);
+            // Into the tree's frame and scaled space, as trace_single_rays:
+            // o moves and scales, the range scales, d does neither.
+            const Vec3 so = to_tree_space(tree, o);
+            for (int c = 0; c < 3; ++c) r.org[c][i] = so[c];
             r.tmin[i] = float(tmin * scale), tmax[i] = float(tm * scale);
         }
     }
@@ -456,7 +471,7 @@ inline LaneMask trace_packet(const TreeView& tree, const PacketRays& rays, LaneM
     uint32_t index = 0;
     PacketMailbox mailbox;
     const Node* nodes = tree.nodes;
-    vfloat reach = lane_reach(rays, hits.t);
+    vfloat reach = lane_reach(rays, hits);
     active &= ~lane_bits(reach < t0);
     for (;;) {
         const Node node = nodes[index];
@@ -488,7 +503,7 @@ inline LaneMask trace_packet(const TreeView& tree, const PacketRays& rays, LaneM
         }
         if (active) {
             intersect_packet_leaf(tree, node, index, rays, active, t0, t1, mailbox, hits);
-            reach = lane_reach(rays, hits.t);
+            reach = lane_reach(rays, hits);
         }
         // Pop the next cell its lanes still need: a lane leaves a cell that
         // starts beyond its closest hit (trace_one's early exit, lane by
@@ -513,7 +528,7 @@ inline void trace_packets(const TreeView& view, const RayBatch& batch, const Hit
         PacketRays rays;
         vfloat t0, t1, tmax;
         const LaneMask active = setup_packet(view, batch, first, n, rays, t0, t1, tmax);
-        PacketHits hits{tmax, vfloat{}, vfloat{}, vint{} - 1};
+        PacketHits hits{tmax, vfloat{}, vfloat{}, vint{} - 1, vdouble{} - INFINITY};
         const LaneMask in_plane = active ? trace_packet(view, rays, active, t0, t1, hits) : 0;
         for (int i = 0; i < n; ++i) {
             const size_t k = first + size_t(i);

@@ -5,6 +5,7 @@
 // linkage: every level gets its own copy, and none leaks into another.
 #pragma once
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -50,27 +51,61 @@ struct Mailbox {
 };
 
 // The closest hit so far. Of equally close hits (the same float t) the
-// smallest triangle index wins, on every path (counting or not, culling or
-// not, SIMD leaves, packets, any thread count), so which leaf finds a hit
-// first never changes the answer: two triangles sharing an edge the ray
-// meets exactly, or coinciding, give one answer everywhere.
+// nearer in double (td, ray_distance) wins, and of those the smallest
+// triangle index, on every path (counting or not, culling or not, SIMD
+// leaves, packets, any thread count), so which leaf finds a hit first never
+// changes the answer: two triangles sharing an edge the ray meets exactly,
+// or coinciding, give one answer everywhere. (By the float t alone the
+// early exit had to go on through every cell a hit could round to the same
+// float in: from 10^7 scene sizes away, half the scene; walk_reach_exact.)
 struct Closest {
     float t;
     int32_t prim = -1;
     float u = 0, v = 0;
+    double td = -INFINITY;  // no hit yet: nothing ties with tmax
     // The walk parameter beyond which no cell can hold a hit as close
-    // (walk_reach): the early exit's and the cull box's end.
+    // (walk_reach, walk_reach_exact): the early exit's and the cull box's end.
     float reach;
 
-    bool beaten_by(float t_new, uint32_t p) const {
-        return t_new < t || (t_new == t && int32_t(p) < prim);
+    bool beaten_by(float t_new, double td_new, uint32_t p) const {
+        return t_new < t || (t_new == t && (td_new < td || (td_new == td && int32_t(p) < prim)));
     }
-    void take(float t_new, uint32_t p, float u_new, float v_new, double t_e) {
+    void take(float t_new, double td_new, uint32_t p, float u_new, float v_new, double t_e) {
         t = t_new;
+        td = td_new;
         prim = int32_t(p);
         u = u_new;
         v = v_new;
-        reach = walk_reach(t_new, t_e);
+        reach = walk_reach_exact(td_new, t_e);
+    }
+};
+
+// What every walk of one ray (trace_one here, the BVH's walks) starts from:
+// the ray as plain arrays (the axis is a run-time index in the hot loops),
+// its walk start (walk_start.hpp), the walk's range [s_lo, s_hi] for the
+// ray's [tmin, tmax], and the closest hit reset to tmax.
+struct RayWalk {
+    float dir[3], idir[3];
+    WalkStart walk;
+    float s_lo, s_hi;
+
+    RayWalk(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
+            Closest& hit)
+        : dir{d.x, d.y, d.z},
+          idir{1.0f / d.x, 1.0f / d.y, 1.0f / d.z},
+          walk(tree, std::array<float, 3>{o.x, o.y, o.z}.data(), dir, idir),
+          s_lo(walk_lower(tmin, walk.t_e)),
+          s_hi(walk_upper(tmax, walk.t_e)) {
+        hit.t = tmax;
+        hit.reach = walk_reach(tmax, walk.t_e);
+    }
+
+    // The triangle test's ray: from the walk origin for a far ray
+    // (ShearedRay::t_offset, kFarTestSizes), with the precision of a point
+    // inside the box; else from the ray's own origin.
+    ShearedRay test_ray() const {
+        return ShearedRay(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]),
+                          Vec3(dir[0], dir[1], dir[2]), walk.test_t);
     }
 };
 
@@ -206,15 +241,16 @@ __attribute__((noinline)) BSPLAB_KERNEL_FLATTEN void intersect_leaf_hits_only(
                 const uint32_t box = kBoxes == LeafBoxes::Triangle ? p : node.first + first + lane;
                 if (seg.misses(tree.boxes[box])) continue;
             }
-            const float t = float(ray_distance(tree.tris[p], sray));
-            if (!(t > tmin && hit.beaten_by(t, p))) continue;
+            const double td = ray_distance(tree.tris[p], sray);
+            const float t = float(td);
+            if (!(t > tmin && hit.beaten_by(t, td, p))) continue;
             if (tree.box_kind != LeafBoxes::None &&
                 !leaf_accepts(culling_box(tree, p, node.first + first + lane), org, dir, t0,
                               std::min(t1, hit.reach), t, t_e, pad))
                 continue;
             float u, v;
             barycentrics(e.U[lane], e.V[lane], e.W[lane], u, v);
-            hit.take(t, p, u, v, t_e);
+            hit.take(t, td, p, u, v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
                 seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         }
@@ -261,7 +297,8 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         }
         count.test(p);
         TriangleHit th;
-        bool accepted = intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, int32_t(p) < hit.prim);
+        bool accepted = intersect_triangle(sray, tree.tris[p], tmin, hit.t, th, hit.td,
+                                           int32_t(p) < hit.prim);
         if (accepted && tree.box_kind != LeafBoxes::None &&
             !leaf_accepts(culling_box(tree, p, node.first + i), org, dir, t0,
                           std::min(t1, hit.reach), th.t, t_e, pad)) {
@@ -270,7 +307,7 @@ inline void intersect_leaf(const TreeView& tree, Node node, uint32_t index, cons
         }
         if (accepted) {
             count.hit(th.t);
-            hit.take(th.t, p, th.u, th.v, t_e);
+            hit.take(th.t, th.td, p, th.u, th.v, t_e);
             if constexpr (kBoxes != LeafBoxes::None)
                 seg.set(org, dir, t0, std::min(t1, hit.reach), pad);
         } else {
@@ -330,25 +367,17 @@ template <LeafBoxes kBoxes, bool kGeneral, bool kSimdLeaves, bool kPrefetchAbove
           class Counters>
 bool trace_one(const TreeView& tree, const Vec3& o, const Vec3& d, float tmin, float tmax,
                Closest& hit, Counters& count) {
-    hit.t = tmax;
-    // Plain arrays: the axis is a run-time index in the hot loop.
-    const float ray_org[3] = {o.x, o.y, o.z}, dir[3] = {d.x, d.y, d.z};
-    const float idir[3] = {1.0f / d.x, 1.0f / d.y, 1.0f / d.z};
     // The walk runs from the ray's entry into the scene box (walk_start.hpp):
     // its t0, t1 and crossings are s = t - t_e; the hits keep the ray's t.
-    const WalkStart walk(tree, ray_org, dir, idir);
+    const RayWalk ray(tree, o, d, tmin, tmax, hit);
+    const WalkStart& walk = ray.walk;
+    const float *dir = ray.dir, *idir = ray.idir, *org = walk.org;
     const double t_e = walk.t_e;
-    const float* org = walk.org;
-    hit.reach = walk_reach(tmax, t_e);
-    float t0 = walk_lower(tmin, t_e), t1 = walk_upper(tmax, t_e);
+    float t0 = ray.s_lo, t1 = ray.s_hi;
     if (!clip_to_box(tree.bounds, org, idir, dir, walk.org_err, t0, t1)) return true;
     float axis_err[3];
     axis_crossing_errors(walk, t0, t1, axis_err);
-    // A far ray's triangle test starts there too (ShearedRay::t_offset,
-    // kFarTestSizes): the same watertight test, with the precision of a
-    // point inside the box.
-    const ShearedRay sray(Vec3(walk.test_org[0], walk.test_org[1], walk.test_org[2]), d,
-                          walk.test_t);
+    const ShearedRay sray = ray.test_ray();
     // Locals, so that the hot loop keeps them in registers.
     const Node* nodes = tree.nodes;
     const Plane* planes = tree.planes;
@@ -596,13 +625,14 @@ inline bool trace_ray_at(const TreeView& view, const RayBatch& rays, const HitBa
     Counters count;
     const float tmin = rays.tmin[i * rays.tmin_stride];
     const float tmax = rays.tmax[i * rays.tmax_stride];
-    if (scale == 1.0) {
+    if (scale == 1.0 && !view.moved) {
         if (!trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, kInPlane>(
                 view, Vec3(o[0], o[1], o[2]), Vec3(d[0], d[1], d[2]), tmin, tmax, c, count))
             return false;
     } else {
-        // Into the tree's scaled space: o and the range scale, d does not.
-        const Vec3 so(float(o[0] * scale), float(o[1] * scale), float(o[2] * scale));
+        // Into the tree's frame and scaled space: o moves and scales, the
+        // range scales, d does neither.
+        const Vec3 so = to_tree_space(view, o);
         if (!trace_one<kBoxes, kGeneral, kSimdLeaves, kPrefetchAbove, kInPlane>(
                 view, so, Vec3(d[0], d[1], d[2]), float(tmin * scale), float(tmax * scale), c,
                 count))

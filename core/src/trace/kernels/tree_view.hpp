@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "frame.hpp"
 #include "tree.hpp"
 
 namespace bsp {
@@ -27,8 +28,11 @@ struct TreeView {
     // The scene box's longest side, in double: the far-ray test's scale
     // (WalkStart, kFarTestSizes), once per tree instead of once per ray.
     double box_extent;
-    // Rays and distances go into the tree's scaled space and back.
+    // Rays and distances go into the tree's scaled space and back; rays
+    // into its local frame (frame.hpp) first, where `moved`.
     double scale;
+    double offset[3];
+    bool moved;
     // Any general node? Trees without (kd) take the kd-only traversal.
     bool has_general;
     // References per non-empty leaf: trees of big leaves take SIMD leaf
@@ -42,6 +46,12 @@ struct TreeView {
     const BvhLeafTriangle* bvh_leaf_tris;  // Structure::Bvh: the triangles in refs[] order
     const uint32_t* bvh_wide_binary;  // Structure::Bvh: each wide lane's binary node
 };
+
+// A ray origin in the tree's space (frame.hpp's to_frame): the kernels'
+// entries take it where the tree is moved or scaled.
+inline Vec3 to_tree_space(const TreeView& view, const float o[3]) {
+    return to_frame(view.offset, view.scale, o);
+}
 
 inline TreeView make_tree_view(const Tree& tree) {
     const Box& b = tree.bounds;
@@ -62,6 +72,8 @@ inline TreeView make_tree_view(const Tree& tree) {
                     2.0f * scene_scale,
                     box_extent,
                     tree.scale,
+                    {tree.offset[0], tree.offset[1], tree.offset[2]},
+                    tree.offset[0] != 0.0 || tree.offset[1] != 0.0 || tree.offset[2] != 0.0,
                     !tree.planes.empty(),
                     float(double(tree.refs.size()) /
                           double(std::max<uint64_t>(1, tree.stats.leaves - tree.stats.empty_leaves))),
