@@ -437,6 +437,7 @@ def test_bench_cull_pairs_culling_on_with_off(tmp_path):
 
 def test_bench_command_line(tmp_path):
     out = tmp_path / "docs" / "benchmark.md"
+    out.parent.mkdir()  # an --out's folder must exist; its data/ beside it is made
     r = subprocess.run([sys.executable, "-m", "bsplab", "bench", "--scenes", "room",
                         "--side", "8", "--rays", "64", "--repeats", "1", "--out", str(out)],
                        capture_output=True, text=True)
