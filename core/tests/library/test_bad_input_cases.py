@@ -452,7 +452,7 @@ CASES = [
 # The one case that reaches the network stack: a scheduler address nobody
 # answers (refused at once; the wait is bounded by CONNECT_SECONDS).
 UNREACHABLE = cli_case("spec_scheduler_unreachable",
-                       ["experiment", "{d}/spec.toml", "--out", "{d}/out/run"],
+                       ["experiment", "{d}/spec.toml", "--out", "{d}/run"],
                        "error: dask scheduler tcp://127.0.0.1:9: cannot connect within 1 s "
                        "(Timed out trying to connect to tcp://127.0.0.1:9 after 1 s); is a "
                        "scheduler running there?",
