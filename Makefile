@@ -52,8 +52,9 @@ test-cpp:
 
 # The core suite, then the add-on's bpy-free tests (addon/tests: its jobs,
 # images and overlay arrays on the real core, without Blender), in
-# pytest-xdist workers: 13.2 min in two on CI's 2 cores, 17.7 in one
-# process (2026-12-05). addon/tests is its own rootdir: under the repository's
+# pytest-xdist workers: 20.2 min in two on CI's 2 cores with a low-priority
+# build beside it (2026-12-08; 13.2 before the oracle's exact verdict on every
+# disagreeing ray and the shifted and far families). addon/tests is its own rootdir: under the repository's
 # root pytest would import addon/__init__.py (a package's set-up), which
 # needs bpy.
 test-core: core
